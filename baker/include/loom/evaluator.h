@@ -1,0 +1,50 @@
+// The C++ evaluators of an atlas: the surface model itself (the reference) and the closure
+// emulator (the mixture of Cycles closures that the OSL shader and node mode build), both reading
+// the same texels as the shaders and both through the shared shading math.
+#pragma once
+#include <array>
+
+#include "loom/atlas.h"
+#include "loom/shading.h"
+
+namespace loom {
+
+/// Everything the BSDF needs at one surface point, sampled from the atlas.
+struct SurfacePoint {
+  shading::vec3 t, n_p;
+  float h = 0, height = 0;
+  float kind = 0;  ///< as interpolated from yarn_info (0 gap, 1 warp, 2 weft)
+  float along = 0, ply_id = 0, gap = 0;
+  shading::vec3 k_rd, k_td;
+  float k_rs = 0, k_ts = 0;
+  float roughness = 0.25f, thickness = 1, blend = 0.5f, ior = 1.5f;
+  float horizon[LOOM_HORIZON_DIRS] = {};
+};
+
+/// Bilinear, periodic sample at (u, v) (v from the bottom, any real value: wrapped), with the
+/// same filtering as a Blender image texture (linear, repeat); tangent and normal renormalised.
+SurfacePoint sample_surface(const Atlas& a, float u, float v);
+/// The exact texel (ix, iy) (row iy from the bottom).
+SurfacePoint texel_surface(const Atlas& a, int ix, int iy);
+
+enum class Evaluator { Model, Closures };
+
+/// f(wi, wo) without the cosine; wi towards the light, wo towards the viewer, tangent frame.
+std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p, shading::vec3 wi,
+                               shading::vec3 wo, Evaluator e);
+
+/// Mean of f over all texels of the repeat (what a pixel covering many repeats sees).
+std::array<float, 3> eval_bsdf_average(const Atlas& a, shading::vec3 wi, shading::vec3 wo,
+                                       Evaluator e);
+
+/// The closure-mapping error: for texels spread over the repeat and views V over the upper
+/// hemisphere, the relative L1 distance over the sphere of light directions,
+///   e(x, V) = int |f_closures - f_model| |cos| dL / int f_model |cos| dL   (green channel),
+/// and the same for the directional albedo alone (energy error). Mean and worst over (x, V).
+struct MappingError {
+  double mean_l1 = 0, worst_l1 = 0, mean_energy = 0, worst_energy = 0;
+  int texels = 0, views = 0;
+};
+MappingError mapping_error(const Atlas& a, int texels = 64, int views = 24, int sphere_n = 64);
+
+}  // namespace loom

@@ -1,0 +1,14 @@
+// The shared shading math (osl/include/loom/*.h) compiled as C++: the same lines the OSL shaders
+// run, in namespace loom::shading. Include this, never a copy of a formula.
+#pragma once
+
+#define LOOM_CPP 1
+namespace loom::shading {}
+#include "../../../osl/include/loom/osl_compat.h"
+namespace loom::shading {
+#include "../../../osl/include/loom/sggx.h"
+#include "../../../osl/include/loom/spongecake.h"
+#include "../../../osl/include/loom/visibility.h"
+#include "../../../osl/include/loom/surface_bsdf.h"
+#include "../../../osl/include/loom/closure_mapping.h"
+}  // namespace loom::shading

@@ -1,0 +1,105 @@
+// The fabric spec: one JSON file describes a fabric (schema "loom.fabric/1").
+//
+// Every field has a unit, a default and an allowed range (see `spec_fields()` and
+// `loom-bake spec --fields`). Parsing never throws on bad input: it returns every problem found,
+// one message per problem, each naming the JSON path and the allowed range.
+#pragma once
+
+#include <array>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace loom {
+
+inline constexpr const char* kSpecSchema = "loom.fabric/1";
+
+enum class Quality { Draft, Preview, Final, Reference };
+enum class Tier { Surface, Raywave, Fiber };
+
+const char* to_string(Quality q);
+const char* to_string(Tier t);
+
+/// One yarn system (warp or weft). Lengths in micrometres.
+struct YarnSpec {
+  int plies = 2;                       ///< plies per yarn, [1, 8]
+  int fibers_per_ply = 40;             ///< [1, 1000]
+  double yarn_diameter_um = 300;       ///< [10, 5000]
+  double ply_diameter_um = 170;        ///< [5, 5000], <= yarn diameter
+  double fiber_diameter_um = 15;       ///< [1, 200], <= ply diameter
+  double fiber_twist_pitch_um = 2000;  ///< [50, 100000]
+  double ply_twist_deg = 25;           ///< angle of the plies to the yarn axis, [0, 60]
+  std::string twist = "S";             ///< "S" or "Z"
+  double ior = 1.55;                   ///< [1, 3]
+  std::array<double, 3> color_linear{0.5, 0.5, 0.5};  ///< scene-linear RGB after conversion
+  std::array<double, 3> color_input{0.5, 0.5, 0.5};   ///< as written in the spec
+  std::string color_space = "srgb";    ///< "srgb" or "linear"
+  double roughness = 0.25;             ///< SGGX fiber roughness, [0.001, 1]
+  double specular = 0.3;               ///< fraction of light scattered specularly, [0, 1]
+  double transmission = 0.25;          ///< fraction of it transmitted, [0, 1]
+};
+
+struct WeaveSpec {
+  std::string pattern = "plain";  ///< plain | twill | satin | basket | custom
+  int up = 2, down = 1;           ///< twill float lengths, [1, 8] each
+  std::string direction = "Z";    ///< twill diagonal, "S" or "Z"
+  int harness = 5, shift = 2;     ///< satin, harness [5, 16], shift [2, harness-2], coprime
+  int group = 2;                  ///< basket, [2, 4]
+  std::vector<std::vector<int>> matrix;  ///< custom: rows = warp yarns, cols = weft yarns
+};
+
+struct PerlinSpec {
+  bool enabled = false;
+  unsigned seed = 1;           ///< [0, 2^31)
+  double amplitude = 0.15;     ///< in-plane tangent rotation, radians, [0, 1]
+  int cells_per_repeat = 4;    ///< lattice period over one weave repeat, [1, 64]
+};
+
+struct ComponentSpec {
+  bool transmission = true;  ///< diffuse + specular transmission through yarns
+  bool gaps = true;          ///< delta transmission through open gaps between yarns
+  bool shadowing = true;     ///< ply/yarn shadowing-masking (horizon visibility)
+};
+
+struct FabricSpec {
+  std::string name = "default";
+  WeaveSpec weave;
+  YarnSpec warp, weft;
+  double warp_per_cm = 28, weft_per_cm = 28;  ///< thread counts, [1, 400]
+  Tier tier = Tier::Surface;
+  Quality quality = Quality::Preview;
+  double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
+  double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]
+  ComponentSpec components;
+  PerlinSpec perlin;
+};
+
+struct SpecResult {
+  FabricSpec spec;
+  std::vector<std::string> errors;
+  bool ok() const { return errors.empty(); }
+};
+
+/// Parse and validate a spec document. `quality_override` (if non-empty) replaces model.quality.
+SpecResult parse_spec(const nlohmann::json& doc, const std::string& quality_override = "");
+/// Parse text (JSON syntax errors become one error message with line/column).
+SpecResult parse_spec_text(const std::string& text, const std::string& quality_override = "");
+/// Read a file or a built-in preset name ("preset:plain", or a bare preset name).
+SpecResult load_spec(const std::string& file_or_preset, const std::string& quality_override = "");
+
+/// The canonical form: every field present with its effective value, keys sorted. Its sha256
+/// identifies the bake (same canonical spec => same atlas).
+nlohmann::json canonical_spec(const FabricSpec& s);
+
+/// Built-in presets (plain, twill, satin, basket); "default" is plain.
+std::vector<std::string> preset_names();
+nlohmann::json preset(const std::string& name);  ///< throws std::out_of_range on unknown name
+
+/// Texels per weave cell (one warp x weft crossing) for a quality preset.
+int texels_per_cell(Quality q);
+
+/// Upper bound on the atlas's map resolution (per side) that we accept; larger is an error
+/// (the maps, their mip chain and the work buffers must fit comfortably in memory).
+inline constexpr int kMaxMapSide = 4096;
+
+}  // namespace loom

@@ -1,0 +1,361 @@
+#include "loom/atlas.h"
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+#include <fcntl.h>
+#include <openssl/evp.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <cstdio>
+#include <fmt/format.h>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "loom/albedo_lut.h"
+#include "loom/colour.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+OIIO_NAMESPACE_USING
+
+namespace loom {
+
+namespace {
+
+std::string hex_digest(EVP_MD_CTX* ctx) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_DigestFinal_ex(ctx, md, &len);
+  EVP_MD_CTX_free(ctx);
+  std::string out;
+  for (unsigned i = 0; i < len; ++i) out += fmt::format("{:02x}", md[i]);
+  return out;
+}
+
+/// Writes an image as half EXR (node mode, C++ evaluator) and as a tiled mip-mapped .tx.
+void write_map(const Image& img, const fs::path& dir, const std::string& name, bool half,
+               const char* wrap, std::vector<std::string> channel_names) {
+  // Files name their channels R, G, B, A: OpenEXR stores channels sorted by name and Blender
+  // maps EXR channels by these names, so semantic names would reorder or drop channels. The
+  // meaning of each channel is in the manifest.
+  (void)channel_names;
+  ImageSpec spec(img.width, img.height, img.channels, TypeDesc::FLOAT);
+  spec.channelnames = {"R", "G", "B", "A"};
+  spec.channelnames.resize(size_t(img.channels));
+  spec.alpha_channel = -1;  // data, not coverage: no premultiplication anywhere
+  ImageBuf buf(spec);
+  // Flip rows: our row 0 is the bottom (v = 0), files have row 0 at the top.
+  for (int iy = 0; iy < img.height; ++iy) {
+    int fy = img.height - 1 - iy;
+    buf.set_pixels(ROI(0, img.width, fy, fy + 1, 0, 1, 0, img.channels), TypeDesc::FLOAT,
+                   img.px(0, iy));
+  }
+  buf.set_write_format(half ? TypeDesc::HALF : TypeDesc::FLOAT);
+  fs::path exr = dir / (name + ".exr");
+  if (!buf.write(exr.string(), TypeUnknown, "openexr"))
+    throw std::runtime_error(fmt::format("writing {}: {}", exr.string(), buf.geterror()));
+  ImageSpec config;
+  config.tile_width = 64;
+  config.tile_height = 64;
+  config.tile_depth = 1;
+  config.set_format(half ? TypeDesc::HALF : TypeDesc::FLOAT);
+  config.attribute("wrapmodes", wrap);
+  config.attribute("maketx:filtername", "box");
+  config.attribute("maketx:fileformatname", "tiff");
+  fs::path tx = dir / (name + ".tx");
+  if (!ImageBufAlgo::make_texture(ImageBufAlgo::MakeTxTexture, buf, tx.string(), config))
+    throw std::runtime_error(fmt::format("make_texture {}: {}", tx.string(), OIIO::geterror()));
+}
+
+bool read_exr(const fs::path& p, Image& out, std::string& err) {
+  auto in = ImageInput::open(p.string());
+  if (!in) {
+    err = OIIO::geterror();
+    return false;
+  }
+  const ImageSpec& s = in->spec();
+  if (s.width <= 0 || s.height <= 0 || s.width > kMaxMapSide || s.height > 2 * kMaxMapSide ||
+      s.nchannels < 1 || s.nchannels > 4) {
+    err = fmt::format("unexpected size {}x{}x{}", s.width, s.height, s.nchannels);
+    return false;
+  }
+  Image img(s.width, s.height, s.nchannels);
+  std::vector<float> tmp(img.data.size());
+  if (!in->read_image(0, 0, 0, s.nchannels, TypeDesc::FLOAT, tmp.data())) {
+    err = in->geterror();
+    return false;
+  }
+  for (int iy = 0; iy < img.height; ++iy) {
+    int fy = img.height - 1 - iy;
+    std::copy_n(&tmp[size_t(fy) * img.width * img.channels], size_t(img.width) * img.channels,
+                img.px(0, iy));
+  }
+  out = std::move(img);
+  return true;
+}
+
+uint64_t dir_bytes(const fs::path& d) {
+  uint64_t n = 0;
+  for (auto& e : fs::directory_iterator(d))
+    if (e.is_regular_file()) n += e.file_size();
+  return n;
+}
+
+bool plain_filename(const std::string& f) {
+  return !f.empty() && f.find('/') == std::string::npos && f.find('\\') == std::string::npos &&
+         f != "." && f != ".." && f.find('\0') == std::string::npos;
+}
+
+}  // namespace
+
+std::string sha256_string(const std::string& s) {
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr);
+  EVP_DigestUpdate(ctx, s.data(), s.size());
+  return hex_digest(ctx);
+}
+
+std::string sha256_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + p.string());
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr);
+  std::vector<char> buf(1 << 16);
+  while (in) {
+    in.read(buf.data(), std::streamsize(buf.size()));
+    EVP_DigestUpdate(ctx, buf.data(), size_t(in.gcount()));
+  }
+  return hex_digest(ctx);
+}
+
+std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out) {
+  std::vector<std::string> errors;
+  fs::path mp = dir / "manifest.json";
+  std::ifstream in(mp);
+  if (!in) return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
+  json m;
+  try {
+    std::stringstream ss;
+    ss << in.rdbuf();
+    m = json::parse(ss.str());
+  } catch (const std::exception& e) {
+    return {fmt::format("{}: not valid JSON: {}", mp.string(), e.what())};
+  }
+  if (!m.is_object() || !m.contains("schema") || !m["schema"].is_string())
+    return {fmt::format("{}: no \"schema\" field", mp.string())};
+  if (m["schema"] != kAtlasSchema)
+    return {fmt::format("{}: schema {} is not supported; this baker reads \"{}\" (re-bake the "
+                        "atlas)",
+                        mp.string(), m["schema"].dump(), kAtlasSchema)};
+  if (!m.contains("textures") || !m["textures"].is_object() || m["textures"].empty())
+    return {fmt::format("{}: no \"textures\"", mp.string())};
+  for (auto& [name, t] : m["textures"].items()) {
+    if (!t.is_object()) {
+      errors.push_back(fmt::format("textures.{}: expected an object", name));
+      continue;
+    }
+    for (const char* key : {"file", "node_file"}) {
+      if (!t.contains(key) || !t[key].is_string() || !plain_filename(t[key].get<std::string>())) {
+        errors.push_back(fmt::format("textures.{}.{}: must be a plain file name inside the atlas "
+                                     "directory",
+                                     name, key));
+        continue;
+      }
+      fs::path f = dir / t[key].get<std::string>();
+      std::string hkey = std::string(key) == "file" ? "sha256" : "node_sha256";
+      if (!fs::is_regular_file(f)) {
+        errors.push_back(fmt::format("textures.{}: {} is missing", name, f.string()));
+        continue;
+      }
+      if (!t.contains(hkey) || !t[hkey].is_string() || sha256_file(f) != t[hkey]) {
+        errors.push_back(
+            fmt::format("textures.{}: {} does not match its sha256 (corrupted or changed)", name,
+                        f.string()));
+        continue;
+      }
+      auto img = ImageInput::open(f.string());
+      if (!img) {
+        errors.push_back(fmt::format("textures.{}: {} cannot be read: {}", name, f.string(),
+                                     OIIO::geterror()));
+        continue;
+      }
+      const ImageSpec& s = img->spec();
+      if (!t.contains("size") || t["size"] != json::array({s.width, s.height}) ||
+          !t.contains("channels") || !t["channels"].is_array() ||
+          int(t["channels"].size()) != s.nchannels)
+        errors.push_back(fmt::format("textures.{}: {} is {}x{}x{}, the manifest says otherwise",
+                                     name, f.string(), s.width, s.height, s.nchannels));
+    }
+  }
+  if (manifest_out) *manifest_out = m;
+  return errors;
+}
+
+BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions& opt) {
+  auto t0 = std::chrono::steady_clock::now();
+  fs::path dir = fs::absolute(dir_in).lexically_normal();
+  if (dir.filename().empty()) dir = dir.parent_path();
+  ColourConverter cc(opt.ocio_config);
+  for (YarnSpec* y : {&spec.warp, &spec.weft})
+    y->color_linear = y->color_space == "srgb" ? cc.srgb_to_linear(y->color_input) : y->color_input;
+  const json canon = canonical_spec(spec);
+  const std::string spec_hash = sha256_string(canon.dump());
+  // What decides whether an existing atlas can be reused: the spec, the colour conversion and
+  // the very baker binary that made it (a rebuilt baker may bake the same spec differently, and a
+  // version number that someone must remember to bump would let stale atlases through).
+  static const std::string baker_id = [] {
+    std::error_code ec;
+    auto exe = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? std::string(kBakerVersion) : sha256_file(exe);
+  }();
+  const std::string bake_key = sha256_string(canon.dump() + cc.describe().dump() + baker_id);
+
+  BakeResult res;
+  res.dir = dir;
+  if (!opt.force && fs::exists(dir)) {
+    json m;
+    if (validate_atlas(dir, &m).empty() && m.value("bake_key", "") == bake_key) {
+      res.reused = true;
+      res.bytes = dir_bytes(dir);
+      return res;
+    }
+    if (!fs::is_directory(dir))
+      throw std::runtime_error(fmt::format("{} exists and is not a directory", dir.string()));
+    if (!fs::exists(dir / "manifest.json") && !fs::is_empty(dir))
+      throw std::runtime_error(fmt::format("{} exists, is not empty and is not an atlas; refusing "
+                                           "to replace it",
+                                           dir.string()));
+  }
+  fs::create_directories(dir.parent_path());
+  std::random_device rd;
+  fs::path tmp = dir.parent_path() /
+                 fmt::format(".{}.tmp-{}-{:08x}", dir.filename().string(), getpid(), rd());
+  fs::create_directory(tmp);
+  try {
+    SurfaceMaps maps = bake_surface_maps(spec, opt.progress);
+    Image lut = bake_albedo_lut(spec, opt.progress);
+    json textures = json::object();
+    for (size_t k = 0; k < maps.images.size(); ++k) {
+      const MapInfo& mi = maps.info[k];
+      write_map(maps.images[k], tmp, mi.name, true, "periodic", mi.channels);
+      textures[mi.name] = {{"file", mi.name + ".tx"},
+                           {"node_file", mi.name + ".exr"},
+                           {"channels", mi.channels},
+                           {"range", mi.range},
+                           {"units", mi.units},
+                           {"format", "half"},
+                           {"size", {maps.images[k].width, maps.images[k].height}},
+                           {"tiling", "periodic"},
+                           {"period_uv", {1.0, 1.0}},
+                           {"description", mi.description}};
+      if (opt.progress) opt.progress("write", double(k + 1) / (maps.images.size() + 1));
+    }
+    write_map(lut, tmp, "albedo_lut", false, "clamp", {"A_rs", "A_ggx", "A_ts", "one"});
+    textures["albedo_lut"] = {
+        {"file", "albedo_lut.tx"},
+        {"node_file", "albedo_lut.exr"},
+        {"channels", {"A_rs", "A_ggx", "A_ts", "one"}},
+        {"range", {{0, 2}, {0, 2}, {0, 2}, {1, 1}}},
+        {"units", {"", "", "", ""}},
+        {"format", "float"},
+        {"size", {lut.width, lut.height}},
+        {"tiling", "clamp"},
+        {"description",
+         fmt::format("directional albedos per unit k for the closure weights (closure_mapping.h):"
+                     " rows kind-major (warp, then weft, from the bottom), then {0} slices of the "
+                     "ply tangent elevation t_z in [0, {1}], then {2} rows of cos theta_view (row "
+                     "j at max(j/{3}, {4})); columns: view azimuth about t over [0, pi]",
+                     LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_ALBEDO_LUT_SIZE,
+                     LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}};
+    for (auto& [name, t] : textures.items()) {
+      t["sha256"] = sha256_file(tmp / t["file"].get<std::string>());
+      t["node_sha256"] = sha256_file(tmp / t["node_file"].get<std::string>());
+    }
+    json manifest = {
+        {"schema", kAtlasSchema},
+        {"baker_version", kBakerVersion},
+        {"spec_sha256", spec_hash},
+        {"bake_key", bake_key},
+        {"spec", canon},
+        {"tier", to_string(spec.tier)},
+        {"quality", to_string(spec.quality)},
+        {"repeat",
+         {{"warp_yarns", maps.warp_yarns},
+          {"weft_yarns", maps.weft_yarns},
+          {"size_um", {maps.repeat_um[0], maps.repeat_um[1]}}}},
+        {"texels_per_cell", texels_per_cell(spec.quality)},
+        {"colour", cc.describe()},
+        {"yarn_colours_linear", {{"warp", spec.warp.color_linear}, {"weft", spec.weft.color_linear}}},
+        {"conventions",
+         {{"frame", "tangent frame: x along the warp (u), y along the weft (v), z the normal"},
+          {"rows", "row 0 of every file is the top (v = 1); Blender's v = 0 is the bottom"},
+          {"uv", "one weave repeat spans uv [0,1)^2; shaders wrap uv themselves"}}},
+        {"textures", textures}};
+    {
+      std::ofstream out(tmp / "manifest.json");
+      out << manifest.dump(2) << "\n";
+      if (!out) throw std::runtime_error("writing manifest.json failed");
+    }
+    // Publish: rename into place, or atomically exchange with an older atlas and remove it.
+    if (::rename(tmp.c_str(), dir.c_str()) != 0) {
+      if (errno != EEXIST && errno != ENOTEMPTY)
+        throw std::runtime_error(fmt::format("cannot publish {}: {}", dir.string(),
+                                             std::strerror(errno)));
+      json other;
+      if (!opt.force && validate_atlas(dir, &other).empty() &&
+          other.value("bake_key", "") == bake_key) {
+        fs::remove_all(tmp);  // a concurrent bake of the same spec won the race
+        res.reused = true;
+      } else {
+        if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) != 0)
+          throw std::runtime_error(fmt::format("cannot replace {}: {}", dir.string(),
+                                               std::strerror(errno)));
+        fs::remove_all(tmp);  // now holds the old atlas
+      }
+    }
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  res.bytes = dir_bytes(dir);
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+const Image& Atlas::map(const std::string& name) const {
+  for (size_t k = 0; k < names.size(); ++k)
+    if (names[k] == name) return images[k];
+  throw std::runtime_error("atlas has no map " + name);
+}
+
+Atlas load_atlas(const fs::path& dir) {
+  Atlas a;
+  auto errors = validate_atlas(dir, &a.manifest);
+  if (!errors.empty()) {
+    std::string msg = fmt::format("{} is not a valid atlas:", dir.string());
+    for (auto& e : errors) msg += "\n  " + e;
+    throw std::runtime_error(msg);
+  }
+  for (auto& [name, t] : a.manifest["textures"].items()) {
+    Image img;
+    std::string err;
+    if (!read_exr(dir / t["node_file"].get<std::string>(), img, err))
+      throw std::runtime_error(fmt::format("reading map {}: {}", name, err));
+    if (name == "albedo_lut") {
+      a.albedo_lut = std::move(img);
+    } else {
+      a.names.push_back(name);
+      a.images.push_back(std::move(img));
+    }
+  }
+  return a;
+}
+
+}  // namespace loom

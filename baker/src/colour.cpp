@@ -1,0 +1,72 @@
+#include "loom/colour.h"
+
+#include <OpenColorIO/OpenColorIO.h>
+
+#include <stdexcept>
+
+namespace OCIO = OCIO_NAMESPACE;
+
+namespace loom {
+
+struct ColourConverter::Impl {
+  OCIO::ConstConfigRcPtr config;
+  OCIO::ConstCPUProcessorRcPtr cpu;
+  std::string config_name, src, dst;
+};
+
+ColourConverter::ColourConverter(const std::string& config_path) : impl_(std::make_shared<Impl>()) {
+  try {
+    if (!config_path.empty()) {
+      impl_->config = OCIO::Config::CreateFromFile(config_path.c_str());
+      impl_->config_name = config_path;
+      for (const char* name : {"sRGB", "sRGB - Texture", "srgb_texture", "Utility - sRGB - Texture"}) {
+        if (impl_->config->getColorSpace(name)) {
+          impl_->src = name;
+          break;
+        }
+      }
+      if (impl_->src.empty())
+        throw std::runtime_error("the config has no sRGB colour space (looked for \"sRGB\", "
+                                 "\"sRGB - Texture\")");
+      impl_->dst = OCIO::ROLE_SCENE_LINEAR;
+    } else {
+      auto cfg = OCIO::Config::CreateRaw()->createEditableCopy();
+      auto lin = OCIO::ColorSpace::Create();
+      lin->setName("Linear Rec.709");
+      lin->setFamily("linear");
+      cfg->addColorSpace(lin);
+      auto srgb = OCIO::ColorSpace::Create();
+      srgb->setName("sRGB");
+      auto curve = OCIO::ExponentWithLinearTransform::Create();
+      curve->setGamma({2.4, 2.4, 2.4, 1.0});
+      curve->setOffset({0.055, 0.055, 0.055, 0.0});
+      srgb->setTransform(curve, OCIO::COLORSPACE_DIR_TO_REFERENCE);
+      cfg->addColorSpace(srgb);
+      cfg->setRole(OCIO::ROLE_SCENE_LINEAR, "Linear Rec.709");
+      cfg->setRole(OCIO::ROLE_REFERENCE, "Linear Rec.709");
+      impl_->config = cfg;
+      impl_->config_name = "loom-builtin (in-memory OCIO config: sRGB = IEC 61966-2-1 over Rec.709)";
+      impl_->src = "sRGB";
+      impl_->dst = "Linear Rec.709";
+    }
+    auto proc = impl_->config->getProcessor(impl_->src.c_str(), impl_->dst.c_str());
+    impl_->cpu = proc->getDefaultCPUProcessor();
+  } catch (const OCIO::Exception& e) {
+    throw std::runtime_error(std::string("colour conversion (OpenColorIO): ") + e.what());
+  }
+}
+
+std::array<double, 3> ColourConverter::srgb_to_linear(const std::array<double, 3>& c) const {
+  float px[3] = {float(c[0]), float(c[1]), float(c[2])};
+  impl_->cpu->applyRGB(px);
+  return {px[0], px[1], px[2]};
+}
+
+nlohmann::json ColourConverter::describe() const {
+  return {{"config", impl_->config_name},
+          {"from", impl_->src},
+          {"to", impl_->dst},
+          {"ocio_version", OCIO::GetVersion()}};
+}
+
+}  // namespace loom

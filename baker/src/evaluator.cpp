@@ -1,0 +1,173 @@
+#include "loom/evaluator.h"
+
+#include <cmath>
+#include <tbb/parallel_for.h>
+#include <mutex>
+
+#include "loom/albedo_lut.h"
+#include "loom/cycles_closures.h"
+
+namespace loom {
+
+using namespace shading;
+
+namespace {
+
+void bilinear(const Image& img, float u, float v, float out[4]) {
+  float px = u * img.width - 0.5f, py = v * img.height - 0.5f;
+  int x0 = int(std::floor(px)), y0 = int(std::floor(py));
+  float fx = px - x0, fy = py - y0;
+  auto wrap = [](int i, int n) { return ((i % n) + n) % n; };
+  int xa = wrap(x0, img.width), xb = wrap(x0 + 1, img.width);
+  int ya = wrap(y0, img.height), yb = wrap(y0 + 1, img.height);
+  for (int c = 0; c < img.channels; ++c) {
+    float a = img.px(xa, ya)[c] * (1 - fx) + img.px(xb, ya)[c] * fx;
+    float b = img.px(xa, yb)[c] * (1 - fx) + img.px(xb, yb)[c] * fx;
+    out[c] = a * (1 - fy) + b * fy;
+  }
+}
+
+SurfacePoint from_values(const float f[4], const float n[4], const float in[4], const float ar[4],
+                         const float at[4], const float pr[4], const float h0[4],
+                         const float h1[4]) {
+  SurfacePoint p;
+  p.t = normalize(vec3(f[0], f[1], f[2]));
+  if (length(p.t) == 0) p.t = vec3(1, 0, 0);
+  p.height = f[3];
+  p.n_p = normalize(vec3(n[0], n[1], n[2]));
+  if (!(p.n_p.z > 0)) p.n_p = vec3(0, 0, 1);
+  p.h = n[3];
+  p.kind = in[0];
+  p.along = in[1], p.ply_id = in[2], p.gap = in[3];
+  p.k_rd = vec3(ar[0], ar[1], ar[2]);
+  p.k_rs = ar[3];
+  p.k_td = vec3(at[0], at[1], at[2]);
+  p.k_ts = at[3];
+  p.roughness = pr[0], p.thickness = pr[1], p.blend = pr[2], p.ior = pr[3];
+  for (int k = 0; k < 4; ++k) p.horizon[k] = h0[k], p.horizon[k + 4] = h1[k];
+  return p;
+}
+
+const char* kMaps[] = {"ply_frame",   "ply_normal",      "yarn_info", "albedo_reflect",
+                       "albedo_transmit", "spec_params", "horizon_0", "horizon_1"};
+
+}  // namespace
+
+SurfacePoint sample_surface(const Atlas& a, float u, float v) {
+  float vals[8][4];
+  for (int k = 0; k < 8; ++k) bilinear(a.map(kMaps[k]), u, v, vals[k]);
+  SurfacePoint p = from_values(vals[0], vals[1], vals[2], vals[3], vals[4], vals[5], vals[6],
+                               vals[7]);
+  return p;
+}
+
+SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
+  const float* v[8];
+  for (int k = 0; k < 8; ++k) v[k] = a.map(kMaps[k]).px(ix, iy);
+  return from_values(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]);
+}
+
+std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,
+                               Evaluator e) {
+  SurfacePoint p = p_in;
+  float hor[LOOM_HORIZON_DIRS];
+  for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) hor[k] = p.horizon[k];
+  float rough = sggx_fiber_roughness(p.roughness);
+  if (e == Evaluator::Model) {
+    vec3 f = surface_bsdf_eval(wi, wo, p.t, p.n_p, rough, p.thickness, p.blend, p.k_rs, p.k_rd,
+                               p.k_ts, p.k_td, p.gap, hor);
+    return {f.x, f.y, f.z};
+  }
+  // Closure mixture, as the shaders build it (closure_mapping.h), evaluated with Cycles' formulas.
+  vec3 V = wo, L = wi, t = p.t, np = p.n_p;
+  bool front = true;
+  if (V.z < 0) {  // seen from below: Cycles flips N towards the viewer; mirror like the model
+    V.z = -V.z, L.z = -L.z, t.z = -t.z, np.z = -np.z;
+    front = false;
+  }
+  if (!(V.z > 0) || L.z == 0) return {0, 0, 0};
+  const vec3 Nc = surface_glossy_normal(t);
+  float vis_v = front ? horizon_visibility(V, hor) : 1.0f;
+  float vis_amb = front ? horizon_ambient_visibility(hor) : 1.0f;
+  float vis_gl = front ? surface_glossy_light_visibility(V, Nc, hor) : 1.0f;
+  float lx, ly, lz;
+  surface_lut_coords(V, t, lx, ly, lz);
+  float lut[3];
+  sample_albedo_lut(a.albedo_lut, p.kind, lx, ly, lz, lut);
+  float w_gap, w_glossy;
+  color w_dnp, w_dns, w_tnp, w_tns;
+  surface_closure_weights(p.gap, p.blend, p.k_rs, p.k_rd, p.k_ts, p.k_td, vis_v, vis_amb, vis_gl,
+                          lut[0], lut[1], lut[2], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy);
+  const vec3 z(0, 0, 1);
+  const vec3 Nv = cycles::ensure_valid_specular_reflection(z, V, Nc);
+  vec3 sum = w_dnp * cycles::diffuse_eval(np, L, z) + w_dns * cycles::diffuse_eval(z, L, z) +
+             w_tnp * cycles::translucent_eval(np, L, z) + w_tns * cycles::translucent_eval(z, L, z) +
+             vec3(w_glossy * cycles::ggx_eval(Nv, t, rough, 1.0f, z, V, L));
+  vec3 f = sum / std::fabs(L.z);
+  return {f.x, f.y, f.z};
+}
+
+std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluator e) {
+  const Image& ref = a.map("ply_frame");
+  double acc[3] = {0, 0, 0};
+  for (int iy = 0; iy < ref.height; ++iy)
+    for (int ix = 0; ix < ref.width; ++ix) {
+      auto f = eval_bsdf(a, texel_surface(a, ix, iy), wi, wo, e);
+      for (int c = 0; c < 3; ++c) acc[c] += f[c];
+    }
+  double n = double(ref.width) * ref.height;
+  return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
+}
+
+MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n) {
+  const Image& ref = a.map("ply_frame");
+  // Texels on a jittered-free stratified lattice; views on a spherical Fibonacci set.
+  int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
+  std::vector<vec3> V;
+  for (int k = 0; k < views; ++k) {
+    double z = 1.0 - (k + 0.5) / views * 0.97, r = std::sqrt(1 - z * z);
+    double phi = k * 2.399963229728653;
+    V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
+  }
+  std::vector<vec3> L;
+  std::vector<float> dw;
+  for (int i = 0; i < sphere_n; ++i)
+    for (int j = 0; j < 2 * sphere_n; ++j) {
+      double z = -1 + (i + 0.5) * 2.0 / sphere_n, r = std::sqrt(1 - z * z);
+      double ph = (j + 0.5) * M_PI / sphere_n;
+      L.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
+      dw.push_back(float((2.0 / sphere_n) * (M_PI / sphere_n) * std::fabs(z)));
+    }
+  MappingError out;
+  std::mutex mu;
+  tbb::parallel_for(0, side * side, [&](int idx) {
+    int ix = int((idx % side + 0.5) / side * ref.width);
+    int iy = int((idx / side + 0.5) / side * ref.height);
+    SurfacePoint p = texel_surface(a, ix, iy);
+    double l1_sum = 0, l1_worst = 0, en_sum = 0, en_worst = 0;
+    int counted = 0;
+    for (const vec3& v : V) {
+      double num = 0, den = 0, ec = 0;
+      for (size_t k = 0; k < L.size(); ++k) {
+        float fm = eval_bsdf(a, p, L[k], v, Evaluator::Model)[1];
+        float fc = eval_bsdf(a, p, L[k], v, Evaluator::Closures)[1];
+        num += std::fabs(fc - fm) * dw[k];
+        den += fm * dw[k];
+        ec += fc * dw[k];
+      }
+      if (den < 1e-6) continue;  // open gaps: nothing to compare
+      double l1 = num / den, en = std::fabs(ec - den) / den;
+      l1_sum += l1, en_sum += en, ++counted;
+      l1_worst = std::max(l1_worst, l1), en_worst = std::max(en_worst, en);
+    }
+    std::lock_guard lock(mu);
+    out.mean_l1 += l1_sum, out.mean_energy += en_sum, out.views += counted;
+    out.worst_l1 = std::max(out.worst_l1, l1_worst);
+    out.worst_energy = std::max(out.worst_energy, en_worst);
+    out.texels += counted > 0;
+  });
+  if (out.views > 0) out.mean_l1 /= out.views, out.mean_energy /= out.views;
+  return out;
+}
+
+}  // namespace loom

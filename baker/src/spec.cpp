@@ -1,0 +1,488 @@
+// Fabric spec parsing and validation. See spec.h.
+#include "loom/spec.h"
+
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <numeric>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace loom {
+
+using nlohmann::json;
+
+const char* to_string(Quality q) {
+  switch (q) {
+    case Quality::Draft: return "draft";
+    case Quality::Preview: return "preview";
+    case Quality::Final: return "final";
+    case Quality::Reference: return "reference";
+  }
+  return "?";
+}
+
+const char* to_string(Tier t) {
+  switch (t) {
+    case Tier::Surface: return "surface";
+    case Tier::Raywave: return "raywave";
+    case Tier::Fiber: return "fiber";
+  }
+  return "?";
+}
+
+int texels_per_cell(Quality q) {
+  switch (q) {
+    case Quality::Draft: return 16;
+    case Quality::Preview: return 32;
+    case Quality::Final: return 64;
+    case Quality::Reference: return 128;
+  }
+  return 32;
+}
+
+namespace {
+
+std::string type_name(const json& j) {
+  if (j.is_number_integer() || j.is_number_unsigned()) return "integer";
+  if (j.is_number_float()) return "number";
+  return j.type_name();
+}
+
+/// Reads one object level, collecting errors with JSON paths ("$.warp.ior").
+class Reader {
+ public:
+  Reader(const json& obj, std::string path, std::vector<std::string>& errors)
+      : obj_(obj), path_(std::move(path)), errors_(errors) {}
+
+  bool valid_object() const { return obj_.is_object(); }
+  std::string at(const std::string& key) const { return path_ + "." + key; }
+
+  void error(const std::string& key, const std::string& msg) {
+    errors_.push_back(fmt::format("{}: {}", at(key), msg));
+  }
+
+  const json* get(const std::string& key) {
+    seen_.insert(key);
+    if (!obj_.is_object()) return nullptr;
+    auto it = obj_.find(key);
+    return it == obj_.end() ? nullptr : &*it;
+  }
+
+  double number(const std::string& key, double def, double lo, double hi, const char* unit) {
+    const json* j = get(key);
+    if (!j) return def;
+    if (!j->is_number()) {
+      error(key, fmt::format("expected a number in [{}, {}] {}, got {}", lo, hi, unit,
+                             type_name(*j)));
+      return def;
+    }
+    double v = j->get<double>();
+    if (!std::isfinite(v) || v < lo || v > hi) {
+      error(key, fmt::format("{} is out of range [{}, {}] {}", j->dump(), lo, hi, unit));
+      return def;
+    }
+    return v;
+  }
+
+  int integer(const std::string& key, int def, int lo, int hi, const char* unit = "") {
+    const json* j = get(key);
+    if (!j) return def;
+    if (!(j->is_number_integer() || j->is_number_unsigned()) &&
+        !(j->is_number_float() && std::floor(j->get<double>()) == j->get<double>())) {
+      error(key, fmt::format("expected an integer in [{}, {}]{}{}, got {}", lo, hi,
+                             *unit ? " " : "", unit, type_name(*j)));
+      return def;
+    }
+    double v = j->get<double>();
+    if (v < lo || v > hi) {
+      error(key, fmt::format("{} is out of range [{}, {}]{}{}", j->dump(), lo, hi,
+                             *unit ? " " : "", unit));
+      return def;
+    }
+    return static_cast<int>(v);
+  }
+
+  bool boolean(const std::string& key, bool def) {
+    const json* j = get(key);
+    if (!j) return def;
+    if (!j->is_boolean()) {
+      error(key, fmt::format("expected true or false, got {}", type_name(*j)));
+      return def;
+    }
+    return j->get<bool>();
+  }
+
+  std::string choice(const std::string& key, const std::string& def,
+                     const std::vector<std::string>& allowed) {
+    const json* j = get(key);
+    if (!j) return def;
+    std::string list;
+    for (auto& a : allowed) list += (list.empty() ? "" : ", ") + ("\"" + a + "\"");
+    if (!j->is_string()) {
+      error(key, fmt::format("expected one of {}, got {}", list, type_name(*j)));
+      return def;
+    }
+    auto v = j->get<std::string>();
+    for (auto& a : allowed)
+      if (a == v) return v;
+    error(key, fmt::format("\"{}\" is not one of {}", v, list));
+    return def;
+  }
+
+  std::string string(const std::string& key, const std::string& def, size_t max_len) {
+    const json* j = get(key);
+    if (!j) return def;
+    if (!j->is_string() || j->get<std::string>().size() > max_len) {
+      error(key, fmt::format("expected a string of at most {} characters", max_len));
+      return def;
+    }
+    return j->get<std::string>();
+  }
+
+  /// Unknown keys are errors: a misspelt field must not silently fall back to its default.
+  void reject_unknown() {
+    if (!obj_.is_object()) return;
+    for (auto& [k, v] : obj_.items())
+      if (!seen_.count(k)) errors_.push_back(fmt::format("{}: unknown field", at(k)));
+  }
+
+ private:
+  const json& obj_;
+  std::string path_;
+  std::vector<std::string>& errors_;
+  std::set<std::string> seen_;
+};
+
+const json kEmpty = json::object();
+
+const json& sub(Reader& r, const std::string& key, std::vector<std::string>& errors) {
+  const json* j = r.get(key);
+  if (!j) return kEmpty;
+  if (!j->is_object()) {
+    errors.push_back(fmt::format("{}: expected an object, got {}", r.at(key), type_name(*j)));
+    return kEmpty;
+  }
+  return *j;
+}
+
+void read_yarn(const json& j, const std::string& path, YarnSpec& y,
+               std::vector<std::string>& errors) {
+  Reader r(j, path, errors);
+  y.plies = r.integer("plies", y.plies, 1, 8);
+  y.fibers_per_ply = r.integer("fibers_per_ply", y.fibers_per_ply, 1, 1000);
+  y.yarn_diameter_um = r.number("yarn_diameter_um", y.yarn_diameter_um, 10, 5000, "um");
+  y.ply_diameter_um = r.number("ply_diameter_um", y.ply_diameter_um, 5, 5000, "um");
+  y.fiber_diameter_um = r.number("fiber_diameter_um", y.fiber_diameter_um, 1, 200, "um");
+  y.fiber_twist_pitch_um =
+      r.number("fiber_twist_pitch_um", y.fiber_twist_pitch_um, 50, 100000, "um");
+  y.ply_twist_deg = r.number("ply_twist_deg", y.ply_twist_deg, 0, 60, "degrees");
+  y.twist = r.choice("twist", y.twist, {"S", "Z"});
+  y.ior = r.number("ior", y.ior, 1.0, 3.0, "");
+  y.roughness = r.number("roughness", y.roughness, 0.001, 1.0, "");
+  y.specular = r.number("specular", y.specular, 0.0, 1.0, "");
+  y.transmission = r.number("transmission", y.transmission, 0.0, 1.0, "");
+  if (const json* c = r.get("color")) {
+    Reader cr(*c, r.at("color"), errors);
+    if (!c->is_object()) {
+      errors.push_back(fmt::format(
+          "{}: expected an object {{\"srgb\": [r, g, b]}} or {{\"linear\": [r, g, b]}} with "
+          "components in [0, 1]",
+          r.at("color")));
+    } else {
+      const json* s = cr.get("srgb");
+      const json* l = cr.get("linear");
+      cr.reject_unknown();
+      if ((s != nullptr) == (l != nullptr)) {
+        errors.push_back(fmt::format("{}: give exactly one of \"srgb\" or \"linear\"",
+                                     r.at("color")));
+      } else {
+        const json& a = s ? *s : *l;
+        std::string cp = r.at("color") + (s ? ".srgb" : ".linear");
+        bool good = a.is_array() && a.size() == 3;
+        for (size_t k = 0; good && k < 3; ++k) {
+          good = a[k].is_number() && std::isfinite(a[k].get<double>()) &&
+                 a[k].get<double>() >= 0.0 && a[k].get<double>() <= 1.0;
+        }
+        if (!good) {
+          errors.push_back(fmt::format("{}: expected 3 numbers in [0, 1], got {}", cp, a.dump()));
+        } else {
+          for (size_t k = 0; k < 3; ++k) y.color_input[k] = a[k].get<double>();
+          y.color_space = s ? "srgb" : "linear";
+        }
+      }
+    }
+  }
+  r.reject_unknown();
+  if (y.ply_diameter_um > y.yarn_diameter_um)
+    errors.push_back(fmt::format(
+        "{}.ply_diameter_um: {} um is larger than yarn_diameter_um {} um; allowed range [5, {}] um",
+        path, y.ply_diameter_um, y.yarn_diameter_um, y.yarn_diameter_um));
+  if (y.fiber_diameter_um > y.ply_diameter_um)
+    errors.push_back(fmt::format(
+        "{}.fiber_diameter_um: {} um is larger than ply_diameter_um {} um; allowed range [1, {}] "
+        "um",
+        path, y.fiber_diameter_um, y.ply_diameter_um, y.ply_diameter_um));
+}
+
+void read_weave(const json& j, const std::string& path, WeaveSpec& w,
+                std::vector<std::string>& errors) {
+  Reader r(j, path, errors);
+  w.pattern = r.choice("pattern", w.pattern, {"plain", "twill", "satin", "basket", "custom"});
+  if (w.pattern == "twill") {
+    w.up = r.integer("up", w.up, 1, 8);
+    w.down = r.integer("down", w.down, 1, 8);
+    w.direction = r.choice("direction", w.direction, {"S", "Z"});
+    if (w.up + w.down < 3)
+      errors.push_back(fmt::format("{}: up + down = {} makes a plain weave; a twill needs "
+                                   "up + down in [3, 16]",
+                                   path, w.up + w.down));
+  } else if (w.pattern == "satin") {
+    w.harness = r.integer("harness", w.harness, 5, 16);
+    w.shift = r.integer("shift", w.shift, 2, 14);
+    if (w.shift > w.harness - 2 || std::gcd(w.shift, w.harness) != 1)
+      errors.push_back(fmt::format("{}.shift: {} is not allowed with harness {}: the shift must "
+                                   "be in [2, {}] and coprime with the harness",
+                                   path, w.shift, w.harness, w.harness - 2));
+  } else if (w.pattern == "basket") {
+    w.group = r.integer("group", w.group, 2, 4);
+  } else if (w.pattern == "custom") {
+    const json* m = r.get("matrix");
+    bool good = m && m->is_array() && !m->empty() && m->size() <= 64;
+    size_t cols = good ? ((*m)[0].is_array() ? (*m)[0].size() : 0) : 0;
+    good = good && cols >= 1 && cols <= 64;
+    if (good) {
+      w.matrix.clear();
+      for (auto& row : *m) {
+        if (!row.is_array() || row.size() != cols) { good = false; break; }
+        std::vector<int> rr;
+        for (auto& v : row) {
+          if (!v.is_number_integer() || (v.get<int>() != 0 && v.get<int>() != 1)) {
+            good = false;
+            break;
+          }
+          rr.push_back(v.get<int>());
+        }
+        w.matrix.push_back(rr);
+      }
+    }
+    if (!good) {
+      errors.push_back(fmt::format("{}.matrix: expected a rectangular array of 1 to 64 rows of 1 "
+                                   "to 64 entries, each 0 (weft on top) or 1 (warp on top)",
+                                   path));
+      w.matrix = {{1, 0}, {0, 1}};
+    } else {
+      // Each warp yarn must go under at least once and over at least once, or it is not woven.
+      for (size_t i = 0; i < w.matrix.size(); ++i) {
+        int s = std::accumulate(w.matrix[i].begin(), w.matrix[i].end(), 0);
+        if (s == 0 || s == static_cast<int>(cols))
+          errors.push_back(fmt::format("{}.matrix[{}]: warp yarn {} never interlaces (all {}); "
+                                       "every row needs both 0 and 1",
+                                       path, i, i, s ? 1 : 0));
+      }
+      for (size_t c = 0; c < cols; ++c) {
+        int s = 0;
+        for (auto& row : w.matrix) s += row[c];
+        if (s == 0 || s == static_cast<int>(w.matrix.size()))
+          errors.push_back(fmt::format("{}.matrix: weft yarn (column) {} never interlaces; "
+                                       "every column needs both 0 and 1",
+                                       path, c));
+      }
+    }
+  }
+  r.reject_unknown();
+}
+
+}  // namespace
+
+SpecResult parse_spec(const json& doc, const std::string& quality_override) {
+  SpecResult res;
+  auto& errors = res.errors;
+  FabricSpec& s = res.spec;
+  if (!doc.is_object()) {
+    errors.push_back(fmt::format("$: expected a JSON object, got {}", type_name(doc)));
+    return res;
+  }
+  Reader r(doc, "$", errors);
+  if (const json* sc = r.get("schema")) {
+    if (!sc->is_string() || sc->get<std::string>() != kSpecSchema)
+      errors.push_back(fmt::format("$.schema: {} is not supported; this baker reads \"{}\"",
+                                   sc->dump(), kSpecSchema));
+  }
+  s.name = r.string("name", s.name, 128);
+  read_weave(sub(r, "weave", errors), "$.weave", s.weave, errors);
+  // "yarn" sets both systems; "warp"/"weft" override it field by field.
+  json yarn = sub(r, "yarn", errors);
+  json warp = yarn, weft = yarn;
+  for (auto [key, target] : {std::pair{"warp", &warp}, std::pair{"weft", &weft}}) {
+    const json& o = sub(r, key, errors);
+    for (auto& [k, v] : o.items()) (*target)[k] = v;
+  }
+  read_yarn(warp, "$.warp", s.warp, errors);
+  read_yarn(weft, "$.weft", s.weft, errors);
+  {
+    Reader d(sub(r, "density", errors), "$.density", errors);
+    s.warp_per_cm = d.number("warp_per_cm", s.warp_per_cm, 1, 400, "yarns/cm");
+    s.weft_per_cm = d.number("weft_per_cm", s.weft_per_cm, 1, 400, "yarns/cm");
+    d.reject_unknown();
+  }
+  {
+    Reader m(sub(r, "model", errors), "$.model", errors);
+    auto tier = m.choice("tier", "surface", {"surface", "raywave", "fiber"});
+    s.tier = tier == "raywave" ? Tier::Raywave : tier == "fiber" ? Tier::Fiber : Tier::Surface;
+    auto q = m.choice("quality", "preview", {"draft", "preview", "final", "reference"});
+    if (!quality_override.empty()) {
+      if (quality_override == "draft" || quality_override == "preview" ||
+          quality_override == "final" || quality_override == "reference")
+        q = quality_override;
+      else
+        errors.push_back(fmt::format("--quality: \"{}\" is not one of \"draft\", \"preview\", "
+                                     "\"final\", \"reference\"",
+                                     quality_override));
+    }
+    s.quality = q == "draft"   ? Quality::Draft
+                : q == "final" ? Quality::Final
+                : q == "reference" ? Quality::Reference
+                                   : Quality::Preview;
+    s.optical_thickness = m.number("optical_thickness", s.optical_thickness, 0.01, 100, "");
+    s.diffuse_blend = m.number("diffuse_blend", s.diffuse_blend, 0, 1, "");
+    m.reject_unknown();
+  }
+  {
+    Reader c(sub(r, "components", errors), "$.components", errors);
+    s.components.transmission = c.boolean("transmission", s.components.transmission);
+    s.components.gaps = c.boolean("gaps", s.components.gaps);
+    s.components.shadowing = c.boolean("shadowing", s.components.shadowing);
+    s.perlin.enabled = c.boolean("perlin", s.perlin.enabled);
+    c.reject_unknown();
+  }
+  {
+    Reader p(sub(r, "perlin", errors), "$.perlin", errors);
+    s.perlin.seed = static_cast<unsigned>(p.integer("seed", 1, 0, 2147483647));
+    s.perlin.amplitude = p.number("amplitude", s.perlin.amplitude, 0, 1, "radians");
+    s.perlin.cells_per_repeat = p.integer("cells_per_repeat", s.perlin.cells_per_repeat, 1, 64);
+    p.reject_unknown();
+  }
+  r.reject_unknown();
+
+  // Cross-field checks.
+  if (s.tier != Tier::Surface)
+    errors.push_back(fmt::format("$.model.tier: \"{}\" is not available yet in this baker; "
+                                 "allowed now: \"surface\"",
+                                 to_string(s.tier)));
+  // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
+  int rows = 2, cols = 2;
+  const auto& w = s.weave;
+  if (w.pattern == "twill") rows = cols = w.up + w.down;
+  if (w.pattern == "satin") rows = cols = w.harness;
+  if (w.pattern == "basket") rows = cols = 2 * w.group;
+  if (w.pattern == "custom" && !w.matrix.empty()) {
+    rows = static_cast<int>(w.matrix.size());
+    cols = static_cast<int>(w.matrix[0].size());
+  }
+  long long side = static_cast<long long>(std::max(rows, cols)) * texels_per_cell(s.quality);
+  if (side > kMaxMapSide)
+    errors.push_back(fmt::format(
+        "$.model.quality: \"{}\" needs {} x {} texels for a {} x {} weave repeat, more than the "
+        "{} per side that fit in memory; choose a lower quality or a smaller repeat",
+        to_string(s.quality), cols * texels_per_cell(s.quality), rows * texels_per_cell(s.quality),
+        rows, cols, kMaxMapSide));
+  for (auto [name, y, per_cm] : {std::tuple{"warp", &s.warp, s.weft_per_cm},
+                                 std::tuple{"weft", &s.weft, s.warp_per_cm}}) {
+    // A yarn wider than 3x its spacing cannot lie flat next to its neighbours.
+    double spacing = 1e4 / per_cm;
+    if (y->yarn_diameter_um > 3.0 * spacing)
+      errors.push_back(fmt::format(
+          "$.{}.yarn_diameter_um: {} um does not fit at {} yarns/cm (spacing {:.1f} um); allowed "
+          "range [10, {:.1f}] um at this density",
+          name, y->yarn_diameter_um, per_cm, spacing, 3.0 * spacing));
+  }
+  return res;
+}
+
+SpecResult parse_spec_text(const std::string& text, const std::string& quality_override) {
+  json doc;
+  try {
+    doc = json::parse(text, nullptr, true, /*ignore_comments=*/false);
+  } catch (const json::exception& e) {  // syntax errors, and numbers that overflow a double
+    SpecResult r;
+    r.errors.push_back(fmt::format("$: not valid JSON: {}", e.what()));
+    return r;
+  }
+  return parse_spec(doc, quality_override);
+}
+
+SpecResult load_spec(const std::string& file_or_preset, const std::string& quality_override) {
+  std::string name = file_or_preset;
+  if (name.rfind("preset:", 0) == 0) name = name.substr(7);
+  for (auto& p : preset_names())
+    if (p == name) return parse_spec(preset(name), quality_override);
+  std::ifstream in(file_or_preset, std::ios::binary);
+  if (!in) {
+    SpecResult r;
+    std::string list;
+    for (auto& p : preset_names()) list += (list.empty() ? "" : ", ") + p;
+    r.errors.push_back(fmt::format("{}: cannot read this file, and it is not a preset name ({})",
+                                   file_or_preset, list));
+    return r;
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_spec_text(ss.str(), quality_override);
+}
+
+json canonical_spec(const FabricSpec& s) {
+  auto yarn = [](const YarnSpec& y) {
+    json c;
+    c[y.color_space] = y.color_input;
+    return json{{"plies", y.plies},
+                {"fibers_per_ply", y.fibers_per_ply},
+                {"yarn_diameter_um", y.yarn_diameter_um},
+                {"ply_diameter_um", y.ply_diameter_um},
+                {"fiber_diameter_um", y.fiber_diameter_um},
+                {"fiber_twist_pitch_um", y.fiber_twist_pitch_um},
+                {"ply_twist_deg", y.ply_twist_deg},
+                {"twist", y.twist},
+                {"ior", y.ior},
+                {"color", c},
+                {"roughness", y.roughness},
+                {"specular", y.specular},
+                {"transmission", y.transmission}};
+  };
+  json weave = {{"pattern", s.weave.pattern}};
+  if (s.weave.pattern == "twill") {
+    weave["up"] = s.weave.up;
+    weave["down"] = s.weave.down;
+    weave["direction"] = s.weave.direction;
+  } else if (s.weave.pattern == "satin") {
+    weave["harness"] = s.weave.harness;
+    weave["shift"] = s.weave.shift;
+  } else if (s.weave.pattern == "basket") {
+    weave["group"] = s.weave.group;
+  } else if (s.weave.pattern == "custom") {
+    weave["matrix"] = s.weave.matrix;
+  }
+  return json{{"schema", kSpecSchema},
+              {"name", s.name},
+              {"weave", weave},
+              {"warp", yarn(s.warp)},
+              {"weft", yarn(s.weft)},
+              {"density", {{"warp_per_cm", s.warp_per_cm}, {"weft_per_cm", s.weft_per_cm}}},
+              {"model",
+               {{"tier", to_string(s.tier)},
+                {"quality", to_string(s.quality)},
+                {"optical_thickness", s.optical_thickness},
+                {"diffuse_blend", s.diffuse_blend}}},
+              {"components",
+               {{"transmission", s.components.transmission},
+                {"gaps", s.components.gaps},
+                {"shadowing", s.components.shadowing},
+                {"perlin", s.perlin.enabled}}},
+              {"perlin",
+               {{"seed", s.perlin.seed},
+                {"amplitude", s.perlin.amplitude},
+                {"cells_per_repeat", s.perlin.cells_per_repeat}}}};
+}
+
+}  // namespace loom

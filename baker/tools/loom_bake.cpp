@@ -1,0 +1,252 @@
+// loom-bake: bake a fabric spec into an atlas, inspect an atlas, and probe its BSDF.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <fmt/format.h>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include "loom/atlas.h"
+#include "loom/evaluator.h"
+#include "loom/spec.h"
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+bool parse_vec(const std::string& s, int n, std::vector<double>& out) {
+  out.clear();
+  size_t pos = 0;
+  while (pos <= s.size()) {
+    size_t end = s.find(',', pos);
+    std::string tok = s.substr(pos, end == std::string::npos ? std::string::npos : end - pos);
+    try {
+      size_t used = 0;
+      double v = std::stod(tok, &used);
+      if (used != tok.size() || !std::isfinite(v)) return false;
+      out.push_back(v);
+    } catch (...) {
+      return false;
+    }
+    if (end == std::string::npos) break;
+    pos = end + 1;
+  }
+  return int(out.size()) == n;
+}
+
+int report_spec_errors(const std::string& what, const std::vector<std::string>& errors) {
+  for (auto& e : errors) std::cerr << "error: " << e << "\n";
+  std::cerr << fmt::format("loom-bake: {} has {} problem{}; nothing was written\n", what,
+                           errors.size(), errors.size() == 1 ? "" : "s");
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "loom-bake: physically based woven cloth for Cycles.\n"
+      "Bakes a fabric spec (JSON, schema loom.fabric/1, or a preset name) into an atlas of\n"
+      "tiled, mip-mapped textures plus manifest.json, which Loom's OSL shaders and node groups\n"
+      "read. Examples:\n"
+      "  loom-bake bake plain -o /tmp/plain.atlas\n"
+      "  loom-bake bake my_fabric.json -o out.atlas --quality final --progress=json\n"
+      "  loom-bake inspect out.atlas\n"
+      "  loom-bake eval bsdf --atlas out.atlas --uv 0.3,0.6 --wi 0,0.5,0.866 --wo 0,0,1"};
+  app.require_subcommand(1);
+
+  std::string spec_arg, out_dir, quality, ocio, progress_mode = "auto";
+  bool force = false;
+  auto* bake = app.add_subcommand("bake", "bake a spec (file or preset name) into an atlas");
+  bake->add_option("spec", spec_arg, "spec file or preset name (plain, twill, satin, basket)")
+      ->required();
+  bake->add_option("-o,--output", out_dir, "atlas directory to create (published atomically)")
+      ->required();
+  bake->add_option("--quality", quality, "override model.quality: draft|preview|final|reference");
+  bake->add_option("--ocio-config", ocio,
+                   "OpenColorIO config for colour conversion (e.g. Blender's); default: $OCIO "
+                   "or Loom's built-in sRGB -> linear Rec.709");
+  bake->add_option("--progress", progress_mode, "progress output: auto|text|json|none");
+  bake->add_flag("--force", force, "re-bake even if the destination holds this spec's atlas");
+
+  std::string inspect_dir;
+  bool inspect_json = false;
+  auto* inspect = app.add_subcommand("inspect", "validate an atlas and print a summary");
+  inspect->add_option("atlas", inspect_dir, "atlas directory")->required();
+  inspect->add_flag("--json", inspect_json, "print the manifest summary as JSON");
+
+  std::string check_arg, check_quality;
+  auto* check = app.add_subcommand("check", "validate a spec and print its canonical form");
+  check->add_option("spec", check_arg, "spec file or preset name")->required();
+  check->add_option("--quality", check_quality, "override model.quality");
+
+  auto* presets = app.add_subcommand("presets", "list the built-in presets, or print one");
+  std::string preset_name;
+  presets->add_option("name", preset_name, "preset to print as JSON");
+
+  auto* eval = app.add_subcommand("eval", "probe an evaluator");
+  eval->require_subcommand(1);
+  auto* bsdf = eval->add_subcommand("bsdf", "BSDF value f (no cosine) at a surface point");
+  std::string atlas_dir, uv_s, wi_s, wo_s, evaluator = "model";
+  bool average = false;
+  bsdf->add_option("--atlas", atlas_dir, "atlas directory")->required();
+  bsdf->add_option("--uv", uv_s, "U,V texture coordinate (one repeat = [0,1)^2, wrapped)");
+  bsdf->add_flag("--average", average, "average f over the whole weave repeat instead of --uv");
+  bsdf->add_option("--wi", wi_s, "X,Y,Z towards the light (tangent frame, x warp, z normal)")
+      ->required();
+  bsdf->add_option("--wo", wo_s, "X,Y,Z towards the viewer (tangent frame)")->required();
+  bsdf->add_option("--evaluator", evaluator, "model | closures")
+      ->check(CLI::IsMember({"model", "closures"}));
+
+  auto* mapping = eval->add_subcommand(
+      "mapping", "closure-mapping error: model vs the Cycles closure mixture, over the sphere");
+  std::string mapping_atlas;
+  int mapping_texels = 64, mapping_views = 24;
+  mapping->add_option("--atlas", mapping_atlas, "atlas directory")->required();
+  mapping->add_option("--texels", mapping_texels, "texels sampled over the repeat")
+      ->check(CLI::Range(1, 4096));
+  mapping->add_option("--views", mapping_views, "view directions over the hemisphere")
+      ->check(CLI::Range(1, 1024));
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    if (*bake) {
+      if (ocio.empty() && std::getenv("OCIO")) ocio = std::getenv("OCIO");
+      auto res = loom::load_spec(spec_arg, quality);
+      if (!res.ok()) return report_spec_errors(spec_arg, res.errors);
+      if (progress_mode != "auto" && progress_mode != "text" && progress_mode != "json" &&
+          progress_mode != "none") {
+        std::cerr << "error: --progress: \"" << progress_mode
+                  << "\" is not one of auto, text, json, none\n";
+        return 2;
+      }
+      if (progress_mode == "auto") progress_mode = isatty(2) ? "text" : "none";
+      loom::BakeOptions opt;
+      opt.ocio_config = ocio;
+      opt.force = force;
+      if (progress_mode == "json") {
+        opt.progress = [](const std::string& stage, double f) {
+          std::cout << json{{"stage", stage}, {"fraction", f}}.dump() << std::endl;
+        };
+      } else if (progress_mode == "text") {
+        opt.progress = [](const std::string& stage, double f) {
+          std::cerr << fmt::format("\r{:<12} {:3.0f}%", stage, 100 * f) << std::flush;
+          if (f >= 1.0) std::cerr << "\n";
+        };
+      }
+      auto r = loom::bake_atlas(res.spec, out_dir, opt);
+      std::cout << json{{"atlas", r.dir.string()},
+                        {"reused", r.reused},
+                        {"seconds", r.seconds},
+                        {"bytes", r.bytes}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*check) {
+      auto res = loom::load_spec(check_arg, check_quality);
+      if (!res.ok()) return report_spec_errors(check_arg, res.errors);
+      std::cout << loom::canonical_spec(res.spec).dump(2) << std::endl;
+      return 0;
+    }
+    if (*presets) {
+      if (preset_name.empty()) {
+        for (auto& p : loom::preset_names()) std::cout << p << "\n";
+        return 0;
+      }
+      try {
+        std::cout << loom::preset(preset_name).dump(2) << std::endl;
+      } catch (const std::out_of_range&) {
+        std::cerr << "error: no preset named \"" << preset_name << "\"\n";
+        return 2;
+      }
+      return 0;
+    }
+    if (*inspect) {
+      json m;
+      auto errors = loom::validate_atlas(inspect_dir, &m);
+      if (!errors.empty()) {
+        for (auto& e : errors) std::cerr << "error: " << e << "\n";
+        std::cerr << fmt::format("loom-bake: {} is not a valid atlas ({} problem{})\n",
+                                 inspect_dir, errors.size(), errors.size() == 1 ? "" : "s");
+        return 3;
+      }
+      json summary = {{"atlas", fs::absolute(inspect_dir).string()},
+                      {"valid", true},
+                      {"schema", m["schema"]},
+                      {"baker_version", m["baker_version"]},
+                      {"spec_sha256", m["spec_sha256"]},
+                      {"name", m["spec"]["name"]},
+                      {"tier", m["tier"]},
+                      {"quality", m["quality"]},
+                      {"repeat", m["repeat"]},
+                      {"colour", m["colour"]}};
+      json tex = json::object();
+      for (auto& [name, t] : m["textures"].items()) tex[name] = t["size"];
+      summary["textures"] = tex;
+      if (inspect_json) {
+        std::cout << summary.dump(2) << std::endl;
+      } else {
+        std::cout << fmt::format("{}: valid {} atlas \"{}\" ({}, {}), {} x {} yarn repeat\n",
+                                 summary["atlas"].get<std::string>(),
+                                 m["schema"].get<std::string>(),
+                                 m["spec"]["name"].get<std::string>(),
+                                 m["tier"].get<std::string>(), m["quality"].get<std::string>(),
+                                 m["repeat"]["warp_yarns"].get<int>(),
+                                 m["repeat"]["weft_yarns"].get<int>());
+        for (auto& [name, t] : m["textures"].items())
+          std::cout << fmt::format("  {:<16} {:>5} x {:<5} {}\n", name, t["size"][0].get<int>(),
+                                   t["size"][1].get<int>(),
+                                   t["channels"].dump());
+      }
+      return 0;
+    }
+    if (*mapping) {
+      auto atlas = loom::load_atlas(mapping_atlas);
+      auto e = loom::mapping_error(atlas, mapping_texels, mapping_views);
+      std::cout << json{{"mean_relative_l1", e.mean_l1},
+                        {"worst_relative_l1", e.worst_l1},
+                        {"mean_energy_error", e.mean_energy},
+                        {"worst_energy_error", e.worst_energy},
+                        {"texels", e.texels},
+                        {"pairs", e.views}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*bsdf) {
+      std::vector<double> uv, wi, wo;
+      if (!average && !parse_vec(uv_s, 2, uv)) {
+        std::cerr << "error: --uv: expected U,V (two finite numbers), or give --average\n";
+        return 2;
+      }
+      if (!parse_vec(wi_s, 3, wi) || !parse_vec(wo_s, 3, wo)) {
+        std::cerr << "error: --wi/--wo: expected X,Y,Z (three finite numbers, not all zero)\n";
+        return 2;
+      }
+      loom::shading::vec3 vi{float(wi[0]), float(wi[1]), float(wi[2])};
+      loom::shading::vec3 vo{float(wo[0]), float(wo[1]), float(wo[2])};
+      if (loom::shading::length(vi) == 0 || loom::shading::length(vo) == 0) {
+        std::cerr << "error: --wi/--wo: a direction must not be the zero vector\n";
+        return 2;
+      }
+      vi = loom::shading::normalize(vi);
+      vo = loom::shading::normalize(vo);
+      auto atlas = loom::load_atlas(atlas_dir);
+      auto e = evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model;
+      std::array<float, 3> f =
+          average ? loom::eval_bsdf_average(atlas, vi, vo, e)
+                  : loom::eval_bsdf(atlas, loom::sample_surface(atlas, float(uv[0]), float(uv[1])),
+                                    vi, vo, e);
+      std::cout << json{{"f", f}, {"evaluator", evaluator}}.dump() << std::endl;
+      return 0;
+    }
+  } catch (const std::exception& ex) {
+    std::cerr << "loom-bake: " << ex.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

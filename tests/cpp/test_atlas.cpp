@@ -1,0 +1,208 @@
+// Atlas contract: bake, validate, reject broken atlases, reuse, CLI behaviour, evaluators.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+
+#include "loom/atlas.h"
+#include "loom/evaluator.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  fs::path p = fs::temp_directory_path() / ("loom_test_" + std::to_string(getpid())) / name;
+  fs::remove_all(p);
+  fs::create_directories(p.parent_path());
+  return p;
+}
+
+loom::FabricSpec draft(const std::string& preset) {
+  auto r = loom::parse_spec(loom::preset(preset), "draft");
+  EXPECT_TRUE(r.ok());
+  return r.spec;
+}
+
+/// A draft plain atlas shared by the tests of this file (baked once).
+const fs::path& plain_atlas() {
+  static fs::path dir = [] {
+    fs::path d = scratch("plain.atlas");
+    loom::bake_atlas(draft("plain"), d, {});
+    return d;
+  }();
+  return dir;
+}
+
+int run(const std::string& cmd, std::string* out = nullptr) {
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string s;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) s.append(buf, n);
+  int st = pclose(p);
+  if (out) *out = s;
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+fs::path copy_atlas(const std::string& name) {
+  fs::path d = scratch(name);
+  fs::copy(plain_atlas(), d);
+  return d;
+}
+
+void edit_manifest(const fs::path& d, const std::function<void(json&)>& f) {
+  json m = json::parse(std::ifstream(d / "manifest.json"));
+  f(m);
+  std::ofstream(d / "manifest.json") << m.dump();
+}
+
+}  // namespace
+
+TEST(Atlas, BakeProducesAValidAtlas) {
+  json m;
+  auto errors = loom::validate_atlas(plain_atlas(), &m);
+  EXPECT_TRUE(errors.empty()) << ::testing::PrintToString(errors);
+  EXPECT_EQ(m["schema"], loom::kAtlasSchema);
+  EXPECT_EQ(m["spec_sha256"].get<std::string>().size(), 64u);
+  EXPECT_EQ(m["colour"]["from"], "sRGB");
+  for (const char* name : {"ply_frame", "ply_normal", "yarn_info", "albedo_reflect",
+                           "albedo_transmit", "spec_params", "horizon_0", "horizon_1",
+                           "albedo_lut"}) {
+    ASSERT_TRUE(m["textures"].contains(name)) << name;
+    EXPECT_TRUE(fs::exists(plain_atlas() / m["textures"][name]["file"].get<std::string>()));
+  }
+  // No temporary directory is left beside it.
+  for (auto& e : fs::directory_iterator(plain_atlas().parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
+TEST(Atlas, ColourGoesThroughOCIO) {
+  // sRGB 0.5 -> linear 0.214041 (IEC 61966-2-1), as recorded in the yarn colours.
+  auto s = draft("plain");
+  s.warp.color_input = s.weft.color_input = {0.5, 0.5, 0.5};
+  auto d = scratch("grey.atlas");
+  loom::bake_atlas(s, d, {});
+  json m = json::parse(std::ifstream(d / "manifest.json"));
+  EXPECT_NEAR(m["yarn_colours_linear"]["warp"][0].get<double>(), 0.2140411, 2e-4);
+}
+
+TEST(Atlas, ReusesAValidAtlasOfTheSameSpec) {
+  auto d = copy_atlas("reuse.atlas");
+  auto r = loom::bake_atlas(draft("plain"), d, {});
+  EXPECT_TRUE(r.reused);
+  auto s = draft("plain");
+  s.warp.roughness = 0.5;
+  auto r2 = loom::bake_atlas(s, d, {});  // different spec: replaced atomically
+  EXPECT_FALSE(r2.reused);
+  json m = json::parse(std::ifstream(d / "manifest.json"));
+  EXPECT_EQ(m["spec"]["warp"]["roughness"], 0.5);
+  EXPECT_TRUE(loom::validate_atlas(d).empty());
+}
+
+TEST(Atlas, RejectsCorruptedTruncatedAndForeignAtlases) {
+  auto d = copy_atlas("corrupt.atlas");
+  { std::ofstream(d / "ply_frame.tx", std::ios::binary | std::ios::trunc) << "x"; }
+  auto e = loom::validate_atlas(d);
+  ASSERT_FALSE(e.empty());
+  EXPECT_NE(e[0].find("sha256"), std::string::npos);
+
+  d = copy_atlas("schema.atlas");
+  edit_manifest(d, [](json& m) { m["schema"] = "loom.atlas/0"; });
+  e = loom::validate_atlas(d);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_NE(e[0].find("not supported"), std::string::npos);
+
+  d = copy_atlas("escape.atlas");
+  edit_manifest(d, [](json& m) { m["textures"]["ply_frame"]["file"] = "../../etc/passwd"; });
+  e = loom::validate_atlas(d);
+  ASSERT_FALSE(e.empty());
+  EXPECT_NE(e[0].find("plain file name"), std::string::npos);
+
+  d = copy_atlas("nomanifest.atlas");
+  fs::remove(d / "manifest.json");
+  EXPECT_FALSE(loom::validate_atlas(d).empty());
+  EXPECT_THROW(loom::load_atlas(d), std::runtime_error);
+}
+
+TEST(Atlas, RefusesToReplaceANonAtlasDirectory) {
+  auto d = scratch("user_stuff");
+  fs::create_directories(d);
+  std::ofstream(d / "precious.txt") << "keep me";
+  EXPECT_THROW(loom::bake_atlas(draft("plain"), d, {}), std::runtime_error);
+  EXPECT_TRUE(fs::exists(d / "precious.txt"));
+}
+
+TEST(AtlasCli, InvalidSpecWritesNothingAndExitsNonZero) {
+  auto spec = scratch("bad.json");
+  std::ofstream(spec) << R"({"warp": {"ior": 7}, "weave": {"pattern": "tartan"}})";
+  auto out = scratch("bad.atlas");
+  std::string text;
+  int code = run(std::string(LOOM_BAKE_EXE) + " bake " + spec.string() + " -o " + out.string() +
+                     " 2>&1",
+                 &text);
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(text.find("$.warp.ior"), std::string::npos) << text;
+  EXPECT_NE(text.find("$.weave.pattern"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out));
+  for (auto& e : fs::directory_iterator(out.parent_path()))
+    EXPECT_EQ(e.path().filename().string().find("bad.atlas"), std::string::npos);
+}
+
+TEST(AtlasCli, InspectAndEval) {
+  std::string text;
+  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + plain_atlas().string(), &text), 0);
+  EXPECT_NE(text.find("valid"), std::string::npos);
+  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval bsdf --atlas " + plain_atlas().string() +
+                    " --uv 0.25,0.25 --wi 0,0.5,0.866 --wo 0.2,0,1 --evaluator closures",
+                &text),
+            0);
+  auto j = json::parse(text);
+  ASSERT_EQ(j["f"].size(), 3u);
+  EXPECT_GT(j["f"][0].get<double>(), 0.0);
+  auto bad = copy_atlas("inspect_bad.atlas");
+  fs::remove(bad / "horizon_0.exr");
+  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + bad.string() + " 2>&1", &text), 3);
+  EXPECT_NE(text.find("horizon_0.exr is missing"), std::string::npos) << text;
+}
+
+TEST(Evaluators, SampleAtTexelCentreIsTheTexel) {
+  auto a = loom::load_atlas(plain_atlas());
+  const auto& img = a.map("ply_frame");
+  for (int k = 0; k < 20; ++k) {
+    int ix = (k * 7) % img.width, iy = (k * 13) % img.height;
+    auto p = loom::sample_surface(a, (ix + 0.5f) / img.width, (iy + 0.5f) / img.height);
+    auto q = loom::texel_surface(a, ix, iy);
+    EXPECT_NEAR(p.height, q.height, 1e-3);
+    EXPECT_NEAR(p.gap, q.gap, 1e-6);
+  }
+}
+
+TEST(Evaluators, ClosureMixtureConservesEnergyAndTracksTheModel) {
+  auto a = loom::load_atlas(plain_atlas());
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<float> U(0, 1);
+  using loom::shading::vec3;
+  for (int k = 0; k < 6; ++k) {
+    auto p = loom::sample_surface(a, U(rng), U(rng));
+    vec3 V = loom::shading::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, 0.2f + U(rng)));
+    double e_model = 0, e_clos = 0;
+    int n = 200;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < 2 * n; ++j) {
+        double z = -1 + (i + 0.5) * 2.0 / n, r = std::sqrt(1 - z * z), ph = (j + 0.5) * M_PI / n;
+        vec3 L{float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)};
+        double dw = (2.0 / n) * (M_PI / n) * std::fabs(z);
+        e_model += loom::eval_bsdf(a, p, L, V, loom::Evaluator::Model)[1] * dw;
+        e_clos += loom::eval_bsdf(a, p, L, V, loom::Evaluator::Closures)[1] * dw;
+      }
+    EXPECT_LE(e_clos, 1.0 + 1e-3);
+    EXPECT_LE(e_model, 1.0 + 1e-3);
+    // Same energy up to what the closures cannot carry (light-side visibility): within 25%.
+    EXPECT_NEAR(e_clos, e_model, 0.25 * e_model + 1e-3) << k;
+  }
+}
