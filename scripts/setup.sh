@@ -8,7 +8,7 @@ PKGS=(
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev libopencolorio-dev
   nlohmann-json3-dev libcli11-dev libtbb-dev libspdlog-dev libfmt-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  debootstrap util-linux
+  debootstrap util-linux time python3
 )
 
 missing=()

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "loom/cycles_closures.h"
 
@@ -23,40 +24,57 @@ void lut_configuration(int ix, int j, int slice, vec3& V, vec3& t) {
 
 void lut_quadrature(Quality q, int& n, int& m) {
   switch (q) {
-    case Quality::Draft: n = 64, m = 48; break;
-    case Quality::Preview: n = 96, m = 64; break;
-    case Quality::Final: n = 160, m = 96; break;
-    case Quality::Reference: n = 256, m = 160; break;
+    case Quality::Draft: n = 32, m = 24; break;
+    case Quality::Preview: n = 48, m = 32; break;
+    case Quality::Final: n = 96, m = 64; break;
+    case Quality::Reference: n = 192, m = 128; break;
   }
 }
 
-LobeAlbedo lobe_albedos(vec3 V, vec3 t, float a, float T, int n, int m) {
-  // Orthonormal frame about t.
-  vec3 e1 = std::fabs(t.z) < 0.9f ? normalize(cross(t, vec3(0, 0, 1))) : normalize(cross(t, vec3(1, 0, 0)));
-  vec3 e2 = cross(t, e1);
-  const vec3 z(0, 0, 1);
-  // The closure's normal as Cycles sets it up for this view.
-  const vec3 Nc = cycles::ensure_valid_specular_reflection(z, V, surface_glossy_normal(t));
-  const double us = -dot(V, t);  // the specular cone: i . t = -V . t
-  const double z0 = std::atan((-1.0 - us) / a), z1 = std::atan((1.0 - us) / a);
-  LobeAlbedo out;
+namespace {
+
+/// int f(i) di over the sphere, with f concentrated on the cone i . axis = c (width ~ a):
+/// u = i . axis = c + a tan(zeta), zeta uniform (n samples), azimuth psi about the axis uniform
+/// (m samples).
+template <class F>
+void cone_quadrature(vec3 axis, double c, double a, int n, int m, F f) {
+  vec3 e1 = std::fabs(axis.z) < 0.9f ? normalize(cross(axis, vec3(0, 0, 1)))
+                                     : normalize(cross(axis, vec3(1, 0, 0)));
+  vec3 e2 = cross(axis, e1);
+  std::vector<float> cs(m), sn(m);
+  for (int j = 0; j < m; ++j) {
+    cs[j] = float(std::cos((j + 0.5) * 2.0 * M_PI / m));
+    sn[j] = float(std::sin((j + 0.5) * 2.0 * M_PI / m));
+  }
+  const double z0 = std::atan((-1.0 - c) / a), z1 = std::atan((1.0 - c) / a);
   for (int k = 0; k < n; ++k) {
     double zeta = z0 + (k + 0.5) * (z1 - z0) / n;
-    double u = std::clamp(us + a * std::tan(zeta), -1.0, 1.0);
+    double u = std::clamp(c + a * std::tan(zeta), -1.0, 1.0);
     double du = a / (std::cos(zeta) * std::cos(zeta)) * (z1 - z0) / n;
     double r = std::sqrt(std::max(0.0, 1.0 - u * u));
-    for (int j = 0; j < m; ++j) {
-      double psi = (j + 0.5) * 2.0 * M_PI / m;
-      double dw = du * 2.0 * M_PI / m;  // solid angle: du dpsi
-      vec3 i = normalize(t * float(u) + e1 * float(r * std::cos(psi)) + e2 * float(r * std::sin(psi)));
-      if (i.z > 1e-7f) {
-        out.rs += surface_specular_reflect(i, V, t, a, T) * i.z * dw;
-        out.ggx += cycles::ggx_eval(Nc, t, a, 1.0f, z, V, i) * dw;
-      } else if (i.z < -1e-7f) {
-        out.ts += surface_specular_transmit(i, V, t, a, T) * (-i.z) * dw;
-      }
-    }
+    double dw = du * 2.0 * M_PI / m;  // solid angle: du dpsi
+    for (int j = 0; j < m; ++j) f(axis * float(u) + e1 * float(r * cs[j]) + e2 * float(r * sn[j]), dw);
   }
+}
+
+}  // namespace
+
+LobeAlbedo lobe_albedos(vec3 V, vec3 t, float a, float T, int n, int m) {
+  const vec3 z(0, 0, 1);
+  LobeAlbedo out;
+  // The model's fiber lobes sit on the specular cone i . t = -V . t.
+  cone_quadrature(t, -dot(V, t), a, n, m, [&](vec3 i, double dw) {
+    if (i.z > 1e-7f)
+      out.rs += surface_specular_reflect(i, V, t, a, T) * i.z * dw;
+    else if (i.z < -1e-7f)
+      out.ts += surface_specular_transmit(i, V, t, a, T) * (-i.z) * dw;
+  });
+  // The closure as Cycles sets it up for this view (its normal raised by
+  // ensure_valid_specular_reflection), integrated about its own narrow axis.
+  const cycles::GGXReflection ggx(
+      cycles::ensure_valid_specular_reflection(z, V, surface_glossy_normal(t)), t, a, 1.0f, z, V);
+  const vec3 X = ggx.tangent();
+  cone_quadrature(X, -dot(V, X), a, n, m, [&](vec3 i, double dw) { out.ggx += ggx.eval(i) * dw; });
   return out;
 }
 

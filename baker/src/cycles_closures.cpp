@@ -66,31 +66,34 @@ void orthonormals_tangent(vec3 N, vec3 T, vec3& X, vec3& Y) {
 }
 }  // namespace
 
-float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L) {
-  float ax = std::clamp(alpha_x, 0.0f, 1.0f), ay = std::clamp(alpha_y, 0.0f, 1.0f);
-  float cos_NI = dot(N, I), cos_NO = dot(N, L), cos_NgO = dot(Ng, L);
+GGXReflection::GGXReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I)
+    : N_(N), Ng_(Ng), I_(I) {
+  ax_ = std::clamp(alpha_x, 0.0f, 1.0f);
+  ay_ = std::clamp(alpha_y, 0.0f, 1.0f);
+  cos_NI_ = dot(N, I);
+  valid_ = cos_NI_ > 0 && ax_ * ay_ > 5e-7f;
+  // Isotropic closures use any frame about N (their Lambda only needs tan^2); anisotropic ones
+  // the frame of the tangent.
+  orthonormals_tangent(N, ax_ == ay_ ? (std::fabs(N.z) < 0.9f ? vec3(0, 0, 1) : vec3(1, 0, 0)) : T,
+                       X_, Y_);
+  lambda_I_ = valid_ ? ggx_lambda(ax_, ay_, {dot(X_, I), dot(Y_, I), cos_NI_}) : 0.0f;
+}
+
+float GGXReflection::eval(vec3 L) const {
+  float cos_NO = dot(N_, L), cos_NgO = dot(Ng_, L);
   bool is_transmission = cos_NO < 0.0f;
-  if (cos_NI <= 0 || ax * ay <= 5e-7f || (cos_NgO < 0.0f) != is_transmission || is_transmission)
-    return 0.0f;
-  vec3 H = normalize(I + L);
-  float D, lI, lO;
-  if (ax == ay) {
-    float a2 = ax * ay, c2 = dot(N, H) * dot(N, H);
-    D = a2 / (float(M_PI) * (1 + (a2 - 1) * c2) * (1 + (a2 - 1) * c2));
-    vec3 X, Y;
-    orthonormals_tangent(N, std::fabs(N.z) < 0.9f ? vec3(0, 0, 1) : vec3(1, 0, 0), X, Y);
-    lI = ggx_lambda(ax, ay, {dot(X, I), dot(Y, I), cos_NI});
-    lO = ggx_lambda(ax, ay, {dot(X, L), dot(Y, L), cos_NO});
-  } else {
-    vec3 X, Y;
-    orthonormals_tangent(N, T, X, Y);
-    vec3 h{dot(X, H) / ax, dot(Y, H) / ay, dot(N, H)};
-    float l2 = dot(h, h);
-    D = 1.0f / (float(M_PI) * ax * ay * l2 * l2);
-    lI = ggx_lambda(ax, ay, {dot(X, I), dot(Y, I), cos_NI});
-    lO = ggx_lambda(ax, ay, {dot(X, L), dot(Y, L), cos_NO});
-  }
-  return D / cos_NI * 0.25f / (1.0f + lI + lO);
+  if (!valid_ || (cos_NgO < 0.0f) != is_transmission || is_transmission) return 0.0f;
+  vec3 H = normalize(I_ + L);
+  vec3 h{dot(X_, H) / ax_, dot(Y_, H) / ay_, dot(N_, H)};
+  float l2 = dot(h, h);
+  // Anisotropic D (bsdf_aniso_D); for ax == ay it equals the isotropic bsdf_D.
+  float D = 1.0f / (float(M_PI) * ax_ * ay_ * l2 * l2);
+  float lO = ggx_lambda(ax_, ay_, {dot(X_, L), dot(Y_, L), cos_NO});
+  return D / cos_NI_ * 0.25f / (1.0f + lambda_I_ + lO);
+}
+
+float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L) {
+  return GGXReflection(N, T, alpha_x, alpha_y, Ng, I).eval(L);
 }
 
 }  // namespace loom::cycles

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
@@ -205,4 +206,51 @@ TEST(Evaluators, ClosureMixtureConservesEnergyAndTracksTheModel) {
     // Same energy up to what the closures cannot carry (light-side visibility): within 25%.
     EXPECT_NEAR(e_clos, e_model, 0.25 * e_model + 1e-3) << k;
   }
+}
+
+TEST(AtlasCli, ProgressJsonLinesEndWithTheResult) {
+  auto d = scratch("progress.atlas");
+  std::string text;
+  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " bake plain --quality draft --progress=json -o " +
+                    d.string(),
+                &text),
+            0);
+  std::istringstream in(text);
+  std::string line, last;
+  int stages = 0;
+  while (std::getline(in, line)) {
+    auto j = json::parse(line);
+    if (j.contains("stage")) {
+      double f = j["fraction"].get<double>();
+      EXPECT_GE(f, 0.0);
+      EXPECT_LE(f, 1.0);
+      ++stages;
+    }
+    last = line;
+  }
+  EXPECT_GE(stages, 4);
+  auto r = json::parse(last);
+  EXPECT_EQ(r["atlas"], fs::absolute(d).string());
+  EXPECT_EQ(r["reused"], false);
+}
+
+TEST(AtlasCli, ConcurrentBakesOfOneSpecLeaveOneValidAtlas) {
+  auto d = scratch("concurrent.atlas");
+  std::string cmd = std::string(LOOM_BAKE_EXE) + " bake twill --quality draft --progress=none -o " +
+                    d.string() + " >/dev/null";
+  auto codes = scratch("codes.txt");
+  std::string one = "(" + cmd + "; echo $? >> " + codes.string() + ")";
+  ASSERT_EQ(run("(" + one + " & " + one + " & " + one + " & wait) 2>&1"), 0);
+  std::ifstream in(codes);
+  int code, n = 0;
+  while (in >> code) {
+    EXPECT_EQ(code, 0);
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+  EXPECT_TRUE(loom::validate_atlas(d).empty());
+  int leftovers = 0;
+  for (auto& e : fs::directory_iterator(d.parent_path()))
+    leftovers += e.path().filename().string().find("concurrent.atlas.tmp") != std::string::npos;
+  EXPECT_EQ(leftovers, 0);
 }

@@ -208,3 +208,24 @@ TEST(AlbedoLUT, ConeQuadratureMatchesUniformQuadrature) {
       EXPECT_NEAR(A.ts, ts, 0.01 * ts + 1e-4);
     }
 }
+
+TEST(AlbedoLUT, DraftQuadratureIsCloseToReference) {
+  // The quality presets trade quadrature samples for bake time; draft must stay within a few
+  // percent of reference where the albedos matter (> 0.02).
+  int dn, dm, rn, rm;
+  loom::lut_quadrature(loom::Quality::Draft, dn, dm);
+  loom::lut_quadrature(loom::Quality::Reference, rn, rm);
+  double worst = 0;
+  for (int slice : {0, 3, 7})
+    for (int j : {2, 15, 31})
+      for (int ix : {0, 10, 31}) {
+        vec3 V, t;
+        loom::lut_configuration(ix, j, slice, V, t);
+        auto d = loom::lobe_albedos(V, t, 0.08f, 4.0f, dn, dm);
+        auto r = loom::lobe_albedos(V, t, 0.08f, 4.0f, rn, rm);
+        for (auto [x, y] : {std::pair{d.rs, r.rs}, std::pair{d.ggx, r.ggx}, std::pair{d.ts, r.ts}})
+          if (y > 0.02) worst = std::max(worst, std::fabs(x - y) / y);
+      }
+  EXPECT_LT(worst, 0.05);
+  std::printf("draft vs reference LUT quadrature: worst relative difference %.4f\n", worst);
+}

@@ -30,4 +30,16 @@ float bump_shadowing_term(vec3 Ns, vec3 N, vec3 L);
 vec3 ensure_valid_specular_reflection(vec3 Ng, vec3 I, vec3 N);
 float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L);
 
+/// The same closure set up once for a view I (Cycles' setup/eval split), for many evaluations.
+struct GGXReflection {
+  GGXReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I);
+  float eval(vec3 L) const;
+  vec3 tangent() const { return X_; }  ///< the closure's alpha_x axis (T made orthogonal to N)
+
+ private:
+  vec3 N_, Ng_, I_, X_, Y_;
+  float ax_, ay_, cos_NI_, lambda_I_;
+  bool valid_;
+};
+
 }  // namespace loom::cycles
