@@ -68,7 +68,7 @@ SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
 }
 
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,
-                               Evaluator e) {
+                               Evaluator e, Backend backend) {
   SurfacePoint p = p_in;
   float hor[LOOM_HORIZON_DIRS];
   for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) hor[k] = p.horizon[k];
@@ -81,8 +81,8 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
   // Closure mixture, as the shaders build it (closure_mapping.h), evaluated with Cycles' formulas.
   vec3 V = wo, L = wi, t = p.t, np = p.n_p;
   bool front = true;
-  if (V.z < 0) {  // seen from below: Cycles flips N towards the viewer; mirror like the model
-    V.z = -V.z, L.z = -L.z, t.z = -t.z, np.z = -np.z;
+  if (V.z < 0) {  // seen from below: Cycles turns N towards the viewer; the back mirrors the front
+    V.z = -V.z, L.z = -L.z;
     front = false;
   }
   if (!(V.z > 0) || L.z == 0) return {0, 0, 0};
@@ -100,26 +100,35 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
                           lut[0], lut[1], lut[2], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy);
   const vec3 z(0, 0, 1);
   const vec3 Nv = cycles::ensure_valid_specular_reflection(z, V, Nc);
+  // Node mode's Translucent BSDF raises its normal like a glossy one (Cycles svm/closure.h);
+  // OSL's translucent() keeps it.
+  // Transmission goes through the physical slab (surface_bsdf.h): on the back, its ply normal is
+  // the stored one mirrored.
+  const vec3 np_slab = front ? np : vec3(np.x, np.y, -np.z);
+  const vec3 np_t = backend == Backend::Nodes
+                        ? cycles::ensure_valid_specular_reflection(z, V, np_slab)
+                        : np_slab;
   vec3 sum = w_dnp * cycles::diffuse_eval(np, L, z) + w_dns * cycles::diffuse_eval(z, L, z) +
-             w_tnp * cycles::translucent_eval(np, L, z) + w_tns * cycles::translucent_eval(z, L, z) +
+             w_tnp * cycles::translucent_eval(np_t, L, z) + w_tns * cycles::translucent_eval(z, L, z) +
              vec3(w_glossy * cycles::ggx_eval(Nv, t, rough, 1.0f, z, V, L));
   vec3 f = sum / std::fabs(L.z);
   return {f.x, f.y, f.z};
 }
 
-std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluator e) {
+std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluator e,
+                                       Backend backend) {
   const Image& ref = a.map("ply_frame");
   double acc[3] = {0, 0, 0};
   for (int iy = 0; iy < ref.height; ++iy)
     for (int ix = 0; ix < ref.width; ++ix) {
-      auto f = eval_bsdf(a, texel_surface(a, ix, iy), wi, wo, e);
+      auto f = eval_bsdf(a, texel_surface(a, ix, iy), wi, wo, e, backend);
       for (int c = 0; c < 3; ++c) acc[c] += f[c];
     }
   double n = double(ref.width) * ref.height;
   return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
 }
 
-MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n) {
+MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, Backend backend) {
   const Image& ref = a.map("ply_frame");
   // Texels on a jittered-free stratified lattice; views on a spherical Fibonacci set.
   int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
@@ -150,7 +159,7 @@ MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n) 
       double num = 0, den = 0, ec = 0;
       for (size_t k = 0; k < L.size(); ++k) {
         float fm = eval_bsdf(a, p, L[k], v, Evaluator::Model)[1];
-        float fc = eval_bsdf(a, p, L[k], v, Evaluator::Closures)[1];
+        float fc = eval_bsdf(a, p, L[k], v, Evaluator::Closures, backend)[1];
         num += std::fabs(fc - fm) * dw[k];
         den += fm * dw[k];
         ec += fc * dw[k];

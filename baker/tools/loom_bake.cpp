@@ -99,6 +99,10 @@ int main(int argc, char** argv) {
   bsdf->add_option("--wo", wo_s, "X,Y,Z towards the viewer (tangent frame)")->required();
   bsdf->add_option("--evaluator", evaluator, "model | closures")
       ->check(CLI::IsMember({"model", "closures"}));
+  std::string backend = "nodes";
+  bsdf->add_option("--backend", backend,
+                   "closures as built by: nodes (node mode, SVM) | osl (the OSL shader)")
+      ->check(CLI::IsMember({"nodes", "osl"}));
 
   auto* mapping = eval->add_subcommand(
       "mapping", "closure-mapping error: model vs the Cycles closure mixture, over the sphere");
@@ -237,11 +241,14 @@ int main(int argc, char** argv) {
       vo = loom::shading::normalize(vo);
       auto atlas = loom::load_atlas(atlas_dir);
       auto e = evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model;
+      auto be = backend == "osl" ? loom::Backend::Osl : loom::Backend::Nodes;
       std::array<float, 3> f =
-          average ? loom::eval_bsdf_average(atlas, vi, vo, e)
+          average ? loom::eval_bsdf_average(atlas, vi, vo, e, be)
                   : loom::eval_bsdf(atlas, loom::sample_surface(atlas, float(uv[0]), float(uv[1])),
-                                    vi, vo, e);
-      std::cout << json{{"f", f}, {"evaluator", evaluator}}.dump() << std::endl;
+                                    vi, vo, e, be);
+      json out = {{"f", f}, {"evaluator", evaluator}};
+      if (e == loom::Evaluator::Closures) out["backend"] = backend;
+      std::cout << out.dump() << std::endl;
       return 0;
     }
   } catch (const std::exception& ex) {

@@ -28,14 +28,17 @@ SurfacePoint sample_surface(const Atlas& a, float u, float v);
 SurfacePoint texel_surface(const Atlas& a, int ix, int iy);
 
 enum class Evaluator { Model, Closures };
+/// Which Cycles front end builds the closures: node mode (SVM) or the OSL shader. They differ in
+/// one place: SVM's Translucent BSDF raises its normal with ensure_valid_specular_reflection.
+enum class Backend { Nodes, Osl };
 
 /// f(wi, wo) without the cosine; wi towards the light, wo towards the viewer, tangent frame.
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p, shading::vec3 wi,
-                               shading::vec3 wo, Evaluator e);
+                               shading::vec3 wo, Evaluator e, Backend backend = Backend::Nodes);
 
 /// Mean of f over all texels of the repeat (what a pixel covering many repeats sees).
 std::array<float, 3> eval_bsdf_average(const Atlas& a, shading::vec3 wi, shading::vec3 wo,
-                                       Evaluator e);
+                                       Evaluator e, Backend backend = Backend::Nodes);
 
 /// The closure-mapping error: for texels spread over the repeat and views V over the upper
 /// hemisphere, the relative L1 distance over the sphere of light directions,
@@ -45,6 +48,7 @@ struct MappingError {
   double mean_l1 = 0, worst_l1 = 0, mean_energy = 0, worst_energy = 0;
   int texels = 0, views = 0;
 };
-MappingError mapping_error(const Atlas& a, int texels = 64, int views = 24, int sphere_n = 64);
+MappingError mapping_error(const Atlas& a, int texels = 64, int views = 24, int sphere_n = 64,
+                           Backend backend = Backend::Nodes);
 
 }  // namespace loom

@@ -13,8 +13,11 @@
 //   * The half vector of both reflection and transmission is h = (i + o) / |i + o|, as in
 //     SpongeCake (the microflakes reflect, they do not refract); h is undefined for o = -i, where
 //     f^{t,s} is set to 0 (a set of measure zero).
-//   * The cloth is two-sided: seen from below (o_z < 0), every vector is mirrored through the
-//     tangent plane; visibility is only baked for the upper side and is 1 below.
+//   * The cloth is two-sided. Seen from below (o_z < 0), i and o are mirrored through the tangent
+//     plane. Reflection off the back takes the back as the mirror image of the front: the atlas's
+//     ply frame (t, n_p) is used as stored, facing the viewer. Transmission goes through the one
+//     physical slab: its ply frame is mirrored too, so that the specular transmission stays
+//     reciprocal across the two sides. Visibility is only baked for the front and is 1 on the back.
 //   * k^{r,s}, k^{t,s} are scalar (fibers are dielectrics: their specular reflection is white);
 //     k^{r,d}, k^{t,d} are colours.
 #ifndef LOOM_SURFACE_BSDF_H
@@ -66,8 +69,6 @@ LOOM_FN color surface_bsdf_eval(vector i_in, vector o_in, vector t_in, vector np
   if (o[2] < 0.0) {
     i[2] = -i[2];
     o[2] = -o[2];
-    t[2] = -t[2];
-    np[2] = -np[2];
     front = 0.0;
   }
   if (!(o[2] > 0.0) || i[2] == 0.0 || !(c < 1.0))
@@ -80,6 +81,10 @@ LOOM_FN color surface_bsdf_eval(vector i_in, vector o_in, vector t_in, vector np
     float fs = k_rs * surface_specular_reflect(i, o, t, a, T);
     color fd = k_rd * surface_diffuse(dot(i, np), i[2], w);
     return (open * vis) * (fd + color(fs));
+  }
+  if (front == 0.0) {  // through the slab from its back: its physical frame, mirrored
+    t[2] = -t[2];
+    np[2] = -np[2];
   }
   float fs = k_ts * surface_specular_transmit(i, o, t, a, T);
   color fd = k_td * surface_diffuse(-dot(i, np), -i[2], w);

@@ -1,0 +1,110 @@
+"""Loom's scripting API, for scripts and CI (``import loom.api`` once the add-on is enabled).
+
+    import loom.api
+    atlas = loom.api.bake("twill", quality="preview")          # blocking; cached
+    mat = loom.api.assign(bpy.data.objects["Cloth"], atlas)    # Auto: OSL where it runs
+
+Both functions raise ``loom.api.LoomError`` (a RuntimeError) with loom-bake's message on failure.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+
+from . import bakery, material as _material, node_mode
+from .bakery import LoomBakeError as LoomError, read_manifest
+
+__all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign"]
+
+_ADDON = __package__
+
+# Set by assign(): what it did (mode and why); read it with last_assign().
+_last: dict = {}
+
+
+def _prefs():
+    addon = bpy.context.preferences.addons.get(_ADDON) if _ADDON else None
+    return addon.preferences if addon is not None else None
+
+
+def find_loom_bake(loom_bake: str | None = None) -> str | None:
+    """loom-bake from the argument, the add-on preference, $LOOM_BAKE or PATH."""
+    if loom_bake:
+        return bakery.find_loom_bake(loom_bake)
+    p = _prefs()
+    return bakery.find_loom_bake(p.loom_bake_path if p is not None else None)
+
+
+def resolve_cache_dir(cache_dir: str | None = None) -> str:
+    """The atlas cache: the argument, the add-on preference, or ~/.cache/loom/atlases."""
+    if cache_dir:
+        return os.path.abspath(os.path.expanduser(cache_dir))
+    p = _prefs()
+    if p is not None and p.cache_dir:
+        return os.path.abspath(bpy.path.abspath(p.cache_dir))
+    return bakery.default_cache_dir()
+
+
+def presets(loom_bake: str | None = None) -> list[str]:
+    exe = find_loom_bake(loom_bake)
+    if exe is None:
+        raise LoomError("loom-bake not found (preferences, $LOOM_BAKE or PATH)")
+    return bakery.list_presets(exe)
+
+
+def bake(spec: str, quality: str = "preview", loom_bake: str | None = None,
+         cache_dir: str | None = None, force: bool = False, timeout: float | None = None) -> str:
+    """Bake ``spec`` (preset name or spec file) at ``quality`` into the atlas cache and return
+    the atlas directory. Blocks; reuses a cached atlas of the same canonical spec."""
+    exe = find_loom_bake(loom_bake)
+    if exe is None:
+        raise LoomError("loom-bake not found: pass loom_bake=, set it in the add-on "
+                        "preferences, set $LOOM_BAKE, or put it on PATH")
+    req = bakery.BakeRequest(spec=spec, quality=quality, loom_bake=exe,
+                             cache_dir=resolve_cache_dir(cache_dir), force=force,
+                             validate=node_mode.atlas_problem)
+    status = bakery.bake_blocking(req, timeout=timeout)
+    if status.state != "done":
+        raise LoomError(status.message)
+    return status.atlas_dir
+
+
+def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, *,
+           size_factor: float = 1.0, material=None, interpolation: str = "Linear", scene=None):
+    """Build a Loom material for ``atlas_dir`` on ``obj`` and return it.
+
+    mode: "auto" (OSL where it can run, else nodes), "osl" (falls back to nodes, with the
+    reason, where OSL cannot run), "nodes".
+    scale: weave repeats per UV unit; None gives the weave its physical size on this object
+    (from the mesh's UV-to-world ratio and the atlas's repeat size), times ``size_factor``.
+    material: the material to (re)build; default the object's active material if Loom manages
+    it (see material.is_loom_material), else a new one in the active slot.
+    interpolation: atlas map filtering, "Linear" (default) or "Closest" (whole texels).
+    What was done (mode and why) is printed and available from ``last_assign()``.
+    """
+    scene = scene or bpy.context.scene
+    manifest = read_manifest(atlas_dir)
+    if scale is None:
+        scale = _material.physical_repeats(obj, manifest, size_factor)
+    mat = _material.ensure_material(obj, material)
+    res = _material.build_material(mat, atlas_dir, mode=mode, scale=float(scale), scene=scene,
+                                   interpolation=interpolation)
+    if hasattr(mat, "loom"):
+        mat.loom.scale_mode = "REPEATS"
+        mat.loom.repeats = float(scale)
+    warning = _material.uv_warning(obj)
+    _last.clear()
+    _last.update(material=mat.name, mode=res.mode, reason=res.reason, scale=res.scale,
+                 atlas=os.path.abspath(atlas_dir), warning=warning)
+    if warning:
+        print(f"loom: warning: {warning}")
+    print(f"loom: {mat.name}: {'OSL' if res.mode == 'OSL' else 'node'} mode ({res.reason}); "
+          f"{res.scale:g} repeats per UV unit")
+    return mat
+
+
+def last_assign() -> dict:
+    """{material, mode ('OSL'|'NODES'), reason, scale, atlas, warning} of the last assign()."""
+    return dict(_last)

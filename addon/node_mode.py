@@ -1,0 +1,477 @@
+"""Node mode: the Loom surface shader as a node group of Cycles' built-in nodes.
+
+This is ``osl/loom_cloth_surface.osl`` rebuilt with Math / Vector Math / Image Texture nodes
+and built-in BSDF nodes, for Blenders without OSL (Debian's, GPUs other than OptiX). The
+functions below transcribe the shared headers line by line through ``nodes_expr`` (see its
+docstring); each one names the header function it mirrors, and the group's frames carry the
+same names. Constants come from the headers themselves (``osl_source.header_constants``).
+
+What node mode adds to the header math is only Blender's side of the plumbing:
+
+* Atlas maps are the ``.exr`` twins of the ``.tx`` files (same texels), read by Image Texture
+  nodes as Non-Color data with alpha ``CHANNEL_PACKED`` (any other alpha mode premultiplies or
+  drops the A channel, which holds data), linear interpolation, REPEAT for the periodic maps and
+  EXTEND for the albedo LUT. Row 0 of the files is the top, which is also how Blender maps v, so
+  UV in [0,1) reads a repeat as is.
+* The tangent frame: T from a Tangent node (UV map), orthogonalised against the normal; N the
+  shading normal (Geometry > Normal, which Cycles turns towards the viewer on back faces); B built
+  from the *front* normal Nf = N * (back ? -1 : 1), so that seeing the cloth from below mirrors z
+  only, as the model does (surface_bsdf.h); atlas vectors are used as stored, so a back face
+  shows the mirror image of the front, exactly like the OSL shader.
+* The glossy closure ``microfacet("ggx", N_c, t, a, 1, ...)`` becomes a Glossy BSDF node (GGX).
+  That node has no alpha inputs: Cycles (kernel/svm/closure.h, CLOSURE_BSDF_MICROFACET_GGX_ID,
+  4.2 to 5.x) sets alpha = saturate(Roughness)^2 and, for 0 < Anisotropy <= 0.99,
+  alpha_x = alpha (1 - Anisotropy) along Tangent and alpha_y = alpha / (1 - Anisotropy).
+  alpha_x = a, alpha_y = 1 therefore needs alpha = sqrt(a), 1 - Anisotropy = sqrt(a):
+  Roughness = a^(1/4), Anisotropy = 1 - sqrt(a) (a >= LOOM_SGGX_MIN_ROUGHNESS = 1e-3 keeps
+  Anisotropy <= 0.969, inside Cycles' clamp).
+* Closure weights go into each BSDF node's Color input (Cycles multiplies the closure by it, and
+  does not clamp it: the glossy weight A_rs / A_ggx may exceed 1); the closures are summed with
+  Add Shader nodes, like the OSL ``+``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import bpy
+
+from . import osl_source
+from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_,
+                         min_, mix, normalize, select, sqrt, vec, wrap)
+
+GROUP_PREFIX = "Loom Surface"
+MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
+        "spec_params", "horizon_0", "horizon_1")
+LUT = "albedo_lut"
+
+# The headers' #defines that node mode uses; their values are read from the headers themselves
+# (osl_source.header_constants), so they live in one place.
+REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO_LUT_SIZE",
+                      "LOOM_SGGX_MIN_ROUGHNESS", "LOOM_LUT_SLICES", "LOOM_LUT_TZ_MAX")
+
+
+# What this module transcribes, as code fingerprints (osl_source.code_fingerprint: comments and
+# whitespace ignored) at the time of the transcription. tests/blender/test_transcription.py
+# fails when a source's code changes: read the diff, update the transcription below, run
+# tests/blender/test_parity.py, then record the new fingerprints here.
+TRANSCRIBED_FROM = {
+    "include/loom/closure_mapping.h": "8847472ce161a9d3",
+    "include/loom/visibility.h": "748a60042d62eda6",
+    "include/loom/sggx.h": "bb8987c508a03304",
+    "loom_cloth_surface.osl": "ae767a6307a4dd1c",
+}
+
+
+def constants() -> dict[str, float]:
+    c = osl_source.header_constants()
+    missing = [k for k in REQUIRED_CONSTANTS if k not in c]
+    if missing:
+        raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
+                           f"add-on's osl/ sources present? {osl_source.osl_dir()})")
+    return c
+
+
+# ======================================================================= sggx.h
+
+
+def sggx_fiber_roughness(roughness, K):
+    """sggx.h: sggx_fiber_roughness: clamp(roughness, LOOM_SGGX_MIN_ROUGHNESS, 1)."""
+    return clamp(roughness, K["LOOM_SGGX_MIN_ROUGHNESS"], 1.0)
+
+
+# ======================================================================= visibility.h
+
+
+def horizon_sine(w: V, h: list, K) -> F:
+    """visibility.h: horizon_sine(w, h).
+
+        phi = atan2(w.y, w.x); if (phi < 0) phi += 2 pi
+        x = phi / (2 pi) * DIRS;  k = floor(x);  f = x - k;  k1 = (k + 1) % DIRS
+        return mix(h[k], h[k1], clamp(f, 0, 1))
+
+    Nodes cannot index an array, so the linear interpolation between bins k and k+1 on the
+    circle is written as the identical sum of tents: for x in [0, DIRS),
+    mix(h[k], h[k+1], f) = sum_j h[j] max(0, 1 - d_j) with d_j the circular distance from x to
+    bin j, d_j = |wrap(x - j + DIRS/2, DIRS, 0) - DIRS/2| (only j = k, k+1 have d_j < 1, with
+    weights 1 - f and f)."""
+    n = int(K["LOOM_HORIZON_DIRS"])
+    phi = atan2(w.y, w.x)
+    phi = select(phi < 0.0, phi + 2.0 * math.pi, phi)
+    x = phi / (2.0 * math.pi) * n
+    terms = []
+    for j in range(n):
+        d = fabs(wrap(x + (0.5 * n - j), float(n), 0.0) - 0.5 * n)
+        terms.append(h[j] * max_(1.0 - d, 0.0))
+    return _balanced_sum(terms)
+
+
+def horizon_visibility(w: V, h: list, K) -> F:
+    """visibility.h: horizon_visibility(w, h).
+
+        if (w.z <= 0) return 1
+        s = horizon_sine(w, h)
+        x = clamp((w.z - (s - SOFT)) / (2 SOFT), 0, 1);  return x x (3 - 2 x)
+    """
+    soft = K["LOOM_HORIZON_SOFTNESS"]
+    s = horizon_sine(w, h, K)
+    x = clamp((w.z - (s - soft)) / (2.0 * soft), 0.0, 1.0)
+    smooth = x * x * (3.0 - 2.0 * x)
+    below = 1.0 - (w.z > 0.0)  # w.z <= 0
+    return select(below, 1.0, smooth)
+
+
+def horizon_ambient_visibility(h: list, K) -> F:
+    """visibility.h: horizon_ambient_visibility(h).
+
+        sum = 0; for k: s = clamp(h[k], 0, 1); sum += 1 - s s;  return sum / DIRS
+    """
+    n = int(K["LOOM_HORIZON_DIRS"])
+    terms = []
+    for k in range(n):
+        s = clamp(h[k], 0.0, 1.0)
+        terms.append(1.0 - s * s)
+    return _balanced_sum(terms) / float(n)
+
+
+def _balanced_sum(terms):
+    """terms[0] + terms[1] + ... as a balanced tree of Add nodes (short dependency chains keep
+    the group's layout compact; the sum is the same)."""
+    while len(terms) > 1:
+        terms = [terms[i] + terms[i + 1] if i + 1 < len(terms) else terms[i]
+                 for i in range(0, len(terms), 2)]
+    return terms[0]
+
+
+# ======================================================================= closure_mapping.h
+
+
+def surface_glossy_normal(t: V) -> V:
+    """closure_mapping.h: surface_glossy_normal(t).
+
+        n = (0,0,1) - t t.z;  l = length(n);  return l < 1e-6 ? (0,0,1) : n / l
+    """
+    n = vec(0.0, 0.0, 1.0) - t * t.z
+    ln = length(n)
+    return select(ln < 1e-6, (0.0, 0.0, 1.0), n / ln)
+
+
+def surface_lut_coords(V_: V, t_in: V, K):
+    """closure_mapping.h: surface_lut_coords(V, t, x, y, z).
+
+        t = t_in; if (t.z < 0) t = -t
+        tt = (t.x, t.y, 0); lt = length(tt); tt = lt < 1e-6 ? (1,0,0) : tt / lt
+        bb = (-tt.y, tt.x, 0); vt = V . tt; vb = |V . bb|
+        phi = |vt| + vb > 1e-9 ? atan2(vb, vt) : 0
+        x = clamp(phi / pi, 0, 1);  y = clamp(V.z, 0, 1)
+        z = clamp(t.z / LUT_TZ_MAX, 0, 1) (LUT_SLICES - 1)
+    """
+    t = select(t_in.z < 0.0, -t_in, t_in)
+    tt = vec(t.x, t.y, 0.0)
+    lt = length(tt)
+    tt = select(lt < 1e-6, (1.0, 0.0, 0.0), tt / lt)
+    bb = vec(-tt.y, tt.x, 0.0)
+    vt = dot(V_, tt)
+    vb = fabs(dot(V_, bb))
+    phi = select(fabs(vt) + vb > 1e-9, atan2(vb, vt), 0.0)
+    x = clamp(phi / math.pi, 0.0, 1.0)
+    y = clamp(V_.z, 0.0, 1.0)
+    z = clamp(t.z / K["LOOM_LUT_TZ_MAX"], 0.0, 1.0) * (K["LOOM_LUT_SLICES"] - 1.0)
+    return x, y, z
+
+
+def surface_lut_slices(z, K):
+    """closure_mapping.h: surface_lut_slices(z, s0, s1, f).
+
+        s0 = floor(clamp(z, 0, SLICES - 1)); s1 = min(s0 + 1, SLICES - 1); f = clamp(z - s0, 0, 1)
+    """
+    last = K["LOOM_LUT_SLICES"] - 1.0
+    s0 = floor(clamp(z, 0.0, last))
+    s1 = min_(s0 + 1.0, last)
+    f = clamp(z - s0, 0.0, 1.0)
+    return s0, s1, f
+
+
+def surface_lut_uv(kind, x, y, slice_, K):
+    """closure_mapping.h: surface_lut_uv(kind, x, y, slice, lut_u, lut_v).
+
+        n = LUT_SIZE; rows = n SLICES; row0 = slice n; if (kind > 1.5) row0 += rows
+        lut_u = (0.5 + clamp(x, 0, 1) (n - 1)) / n
+        lut_v = (row0 + 0.5 + clamp(y, 0, 1) (n - 1)) / (2 rows)
+    """
+    n = K["LOOM_ALBEDO_LUT_SIZE"]
+    rows = n * K["LOOM_LUT_SLICES"]
+    row0 = slice_ * n + select(kind > 1.5, rows, 0.0)
+    lut_u = (0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / n
+    lut_v = (row0 + 0.5 + clamp(y, 0.0, 1.0) * (n - 1.0)) / (2.0 * rows)
+    return lut_u, lut_v
+
+
+def surface_glossy_light_visibility(V_: V, Nc: V, h: list, K, vis_amb) -> F:
+    """closure_mapping.h: surface_glossy_light_visibility(V, Nc, hor).
+
+        Ls = 2 dot(V, Nc) Nc - V
+        return Ls.z <= 0 ? horizon_ambient_visibility(hor) : horizon_visibility(Ls, hor)
+    (``vis_amb`` is the ambient visibility already built for the diffuse weights.)
+    """
+    Ls = Nc * (2.0 * dot(V_, Nc)) - V_
+    return select(1.0 - (Ls.z > 0.0), vis_amb, horizon_visibility(Ls, h, K))
+
+
+def surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb, vis_gl, lut_rs,
+                            lut_ggx, lut_ts):
+    """closure_mapping.h: surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb,
+    vis_gl, lut_rs, lut_ggx, lut_ts) -> (w_gap, w_diffuse_np, w_diffuse_ns,
+    w_translucent_np, w_translucent_ns, w_glossy).
+
+        open = 1 - clamp(c, 0, 1);  w_gap = 1 - open
+        w_diffuse_np = k_rd (open w vis_v vis_amb)
+        w_diffuse_ns = k_rd (open (1 - w) vis_v vis_amb)
+        w_translucent_np = k_td (open w)
+        ratio = lut_ggx > 1e-4 ? clamp(lut_rs / lut_ggx, 0, 1 / lut_ggx) : 0
+        w_glossy = open k_rs vis_v vis_gl ratio
+        w_translucent_ns = k_td (open (1 - w)) + color(open k_ts max(lut_ts, 0))
+    """
+    open_ = 1.0 - clamp(c, 0.0, 1.0)
+    w_gap = 1.0 - open_
+    w_diffuse_np = k_rd * (open_ * w * vis_v * vis_amb)
+    w_diffuse_ns = k_rd * (open_ * (1.0 - w) * vis_v * vis_amb)
+    w_translucent_np = k_td * (open_ * w)
+    ratio = select(lut_ggx > 1e-4, clamp(lut_rs / lut_ggx, 0.0, 1.0 / lut_ggx), 0.0)
+    w_glossy = open_ * k_rs * vis_v * vis_gl * ratio
+    ts = open_ * k_ts * max_(lut_ts, 0.0)
+    w_translucent_ns = k_td * (open_ * (1.0 - w)) + vec(ts, ts, ts)
+    return w_gap, w_diffuse_np, w_diffuse_ns, w_translucent_np, w_translucent_ns, w_glossy
+
+
+# ======================================================================= Cycles glossy node
+
+
+def glossy_node_inputs(a):
+    """Roughness and Anisotropy of a GGX Glossy BSDF node giving alpha_x = a (along its Tangent)
+    and alpha_y = 1; see the module docstring for Cycles' mapping."""
+    s = sqrt(a)
+    return sqrt(s), 1.0 - s
+
+
+# ======================================================================= images
+
+
+def load_atlas_image(atlas_dir: str, manifest: dict, name: str, label: str):
+    """The atlas map ``name`` as a Blender image set up for data (see the module docstring)."""
+    tex = manifest["textures"][name]
+    path = os.path.join(atlas_dir, tex.get("node_file", name + ".exr"))
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"atlas map {name}: {path} is missing")
+    known = any(i.filepath == path for i in bpy.data.images)
+    img = bpy.data.images.load(path, check_existing=True)
+    if known:
+        img.reload()  # the atlas may have been re-baked in place since it was loaded
+    img.name = f"{label} {name}"
+    img.colorspace_settings.name = "Non-Color"
+    img.alpha_mode = "CHANNEL_PACKED"
+    return img
+
+
+# ======================================================================= the group
+
+
+def atlas_problem(atlas_dir: str) -> str | None:
+    """None if node mode can read this atlas, else why not (missing maps, a LUT layout other
+    than the shared headers')."""
+    import json
+
+    try:
+        with open(os.path.join(atlas_dir, "manifest.json"), encoding="utf-8") as f:
+            manifest = json.load(f)
+        textures = manifest["textures"]
+    except (OSError, ValueError, KeyError) as exc:
+        return f"unreadable manifest: {exc}"
+    missing = [m for m in (*MAPS, LUT) if m not in textures]
+    if missing:
+        return f"maps missing: {', '.join(missing)}"
+    K = constants()
+    n = int(K["LOOM_ALBEDO_LUT_SIZE"])
+    want = [n, 2 * n * int(K["LOOM_LUT_SLICES"])]
+    got = list(textures[LUT].get("size", []))
+    if got != want:
+        return f"albedo LUT is {got}, the shaders expect {want}"
+    return None
+
+
+def group_name(manifest: dict) -> str:
+    return f"{GROUP_PREFIX} ({manifest.get('spec', {}).get('name', 'atlas')})"
+
+
+def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Linear",
+                        name: str | None = None):
+    """Build (or rebuild in place) the node group for this atlas and return it.
+
+    Group interface: input ``Scale`` (weave repeats per UV unit), output ``BSDF``. The group
+    reads UV and the UV-map tangent of the active render UV map itself.
+    ``interpolation`` is the Image Texture interpolation of the periodic maps ('Linear' for
+    rendering; 'Closest' reads whole texels, which the parity tests use so that a render's mean
+    is exactly comparable with ``loom-bake eval bsdf --average`` over texels). The albedo LUT
+    is always 'Linear' (the table is sampled bilinearly in every evaluator).
+    """
+    K = constants()
+    n_lut = int(K["LOOM_ALBEDO_LUT_SIZE"])
+    rows = 2 * n_lut * int(K["LOOM_LUT_SLICES"])
+    lut_size = list(manifest["textures"][LUT]["size"])
+    if lut_size != [n_lut, rows]:
+        raise ValueError(f"albedo LUT is {lut_size[0]}x{lut_size[1]}; the shaders expect "
+                         f"{n_lut}x{rows} (LOOM_ALBEDO_LUT_SIZE, LOOM_LUT_SLICES): re-bake the "
+                         f"atlas with this version of loom-bake")
+    if int(K["LOOM_HORIZON_DIRS"]) != 8:
+        raise ValueError("the atlas stores 8 horizon directions (horizon_0, horizon_1)")
+
+    name = name or group_name(manifest)
+    group = bpy.data.node_groups.get(name)
+    if group is None or group.bl_idname != "ShaderNodeTree":
+        group = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    group.nodes.clear()
+    group.interface.clear()
+    s_in = group.interface.new_socket("Scale", in_out="INPUT", socket_type="NodeSocketFloat")
+    s_in.default_value = 1.0
+    s_in.min_value = 0.0
+    s_in.description = "weave repeats per UV unit"
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    group["loom_atlas"] = os.path.abspath(atlas_dir)
+    group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
+    group.description = f"Loom surface cloth from atlas {os.path.abspath(atlas_dir)}"
+
+    b = Builder(group)
+    label = f"Loom {manifest.get('spec', {}).get('name', 'atlas')}"
+
+    # ---------------------------------------------------------------- inputs (OSL: shader params)
+    with b.block("Inputs: UV * Scale, view, frame (loom_cloth_surface.osl)"):
+        gin = b.new("NodeGroupInput")
+        texco = b.new("ShaderNodeTexCoord")
+        geo = b.new("ShaderNodeNewGeometry")
+        tan = b.new("ShaderNodeTangent", direction_type="UV_MAP")  # active render UV map
+        scale_ = b.float_socket(gin.outputs["Scale"])
+        uv = b.vector_socket(texco.outputs["UV"]) * scale_
+        uv = b.label(uv, "uv = UV * Scale")
+
+    # ---------------------------------------------------------------- atlas look-ups
+    with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
+        tex = {}
+        for m in MAPS:
+            node = b.new("ShaderNodeTexImage", interpolation=interpolation,
+                         extension="REPEAT", label=m)
+            node.image = load_atlas_image(atlas_dir, manifest, m, label)
+            b.link(uv, node.inputs["Vector"])
+            tex[m] = (b.vector_socket(node.outputs["Color"]), b.float_socket(node.outputs["Alpha"]))
+
+    c_frame, _height = tex["ply_frame"]
+    c_normal, _h = tex["ply_normal"]
+    c_info, a_info = tex["yarn_info"]  # kind, along, ply_id | gap coverage c
+    c_refl, a_refl = tex["albedo_reflect"]  # k_rd | k_rs
+    c_trans, a_trans = tex["albedo_transmit"]  # k_td | k_ts
+    c_par, _ior = tex["spec_params"]  # roughness, optical thickness, diffuse blend | ior
+    c_h0, a_h0 = tex["horizon_0"]
+    c_h1, a_h1 = tex["horizon_1"]
+
+    # ---------------------------------------------------------------- frame
+    with b.block("Frame: T, B from the front normal, V, atlas vectors "
+                 "(loom_cloth_surface.osl)"):
+        back = b.float_socket(geo.outputs["Backfacing"])
+        N = b.vector_socket(geo.outputs["Normal"])  # Cycles: towards the viewer on back faces
+        zs = 1.0 - 2.0 * back  # OSL: zs = back ? -1 : 1
+        Nf = b.label(N * zs, "Nf (front normal)")
+        Tg = b.vector_socket(tan.outputs["Tangent"])
+        T = b.label(normalize(Tg - Nf * dot(Nf, Tg)), "T")
+        B = b.label(cross(Nf, T), "B")
+        Vw = b.vector_socket(geo.outputs["Incoming"])  # OSL: Vw = -I
+        V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, N)), "V (tangent frame)")
+        t = b.label(normalize(vec(c_frame.x, c_frame.y, c_frame.z)), "t")
+        np_ = b.label(normalize(vec(c_normal.x, c_normal.y, c_normal.z)), "n_p")
+        hor = [c_h0.x, c_h0.y, c_h0.z, a_h0, c_h1.x, c_h1.y, c_h1.z, a_h1]
+
+    with b.block("closure_mapping.h: surface_glossy_normal"):
+        Nc = b.label(surface_glossy_normal(t), "N_c")
+
+    with b.block("visibility.h, closure_mapping.h: vis_v, vis_amb, vis_gl (1 on back faces)"):
+        vis_amb_f = horizon_ambient_visibility(hor, K)
+        vis_v = b.label(select(back, 1.0, horizon_visibility(V_, hor, K)), "vis_v")
+        vis_amb = b.label(select(back, 1.0, vis_amb_f), "vis_amb")
+        vis_gl = b.label(select(back, 1.0, surface_glossy_light_visibility(V_, Nc, hor, K,
+                                                                           vis_amb_f)), "vis_gl")
+
+    with b.block("closure_mapping.h: surface_lut_coords, surface_lut_slices, surface_lut_uv"):
+        lx, ly, lz = surface_lut_coords(V_, t, K)
+        s0, s1, sf = surface_lut_slices(lz, K)
+        lu0, lv0 = surface_lut_uv(c_info.x, lx, ly, s0, K)
+        lu1, lv1 = surface_lut_uv(c_info.x, lx, ly, s1, K)
+        uv0 = b.label(vec(lu0, lv0, 0.0), "LUT uv, slice s0")
+        uv1 = b.label(vec(lu1, lv1, 0.0), "LUT uv, slice s1")
+
+    with b.block("Albedo LUT (A_rs, A_ggx, A_ts), slices mixed (loom_cloth_surface.osl)"):
+        looks = []
+        for uv_s, which in ((uv0, "s0"), (uv1, "s1")):
+            node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                         label=f"{LUT} ({which})")
+            node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
+            b.link(uv_s, node.inputs["Vector"])
+            looks.append(b.vector_socket(node.outputs["Color"]))
+        lut = b.label(mix(looks[0], looks[1], sf), "lut")
+
+    with b.block("closure_mapping.h: surface_closure_weights"):
+        (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy) = surface_closure_weights(
+            a_info, c_par.z, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
+            lut.x, lut.y, lut.z)
+        for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
+                       (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
+                       (w_glossy, "w_glossy")):
+            b.label(e, txt)
+
+    with b.block("Closure normals in world space, glossy roughness (loom_cloth_surface.osl)"):
+        np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
+        # OSL: np_slab_w = back ? mirrored n_p : n_p (transmission goes through the physical slab)
+        np_slab_w = b.label(normalize(T * np_.x + B * np_.y + N * (np_.z * zs)), "n_p slab world")
+        nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
+        t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
+        a = b.label(sggx_fiber_roughness(c_par.x, K), "a")
+        rough, aniso = glossy_node_inputs(a)
+        b.label(rough, "Roughness = a^(1/4)")
+        b.label(aniso, "Anisotropy = 1 - sqrt(a)")
+
+    # ---------------------------------------------------------------- closures
+    with b.block("Closures (closure_mapping.h table)"):
+        transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * w_gap")
+        b.link(vec(w_gap, w_gap, w_gap), transp.inputs["Color"])
+        d_np = b.new("ShaderNodeBsdfDiffuse", label="diffuse(n_p) * w_diffuse_np")
+        b.link(w_dnp, d_np.inputs["Color"])
+        b.link(0.0, d_np.inputs["Roughness"])  # Lambert (Oren-Nayar off)
+        b.link(np_w, d_np.inputs["Normal"])
+        d_ns = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * w_diffuse_ns")
+        b.link(w_dns, d_ns.inputs["Color"])
+        b.link(0.0, d_ns.inputs["Roughness"])
+        t_np = b.new("ShaderNodeBsdfTranslucent", label="translucent(n_p slab) * w_translucent_np")
+        b.link(w_tnp, t_np.inputs["Color"])
+        b.link(np_slab_w, t_np.inputs["Normal"])
+        t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
+        b.link(w_tns, t_ns.inputs["Color"])
+        gl = b.new("ShaderNodeBsdfGlossy", distribution="GGX",
+                   label='microfacet("ggx", N_c, t, a, 1) * w_glossy')
+        b.link(vec(w_glossy, w_glossy, w_glossy), gl.inputs["Color"])
+        b.link(rough, gl.inputs["Roughness"])
+        b.link(aniso, gl.inputs["Anisotropy"])
+        b.link(0.0, gl.inputs["Rotation"])
+        b.link(nc_w, gl.inputs["Normal"])
+        b.link(t_w, gl.inputs["Tangent"])
+        total = None
+        for node in (transp, d_np, d_ns, t_np, t_ns, gl):
+            if total is None:
+                total = node.outputs["BSDF"]
+                continue
+            add = b.new("ShaderNodeAddShader")
+            group.links.new(total, add.inputs[0])
+            group.links.new(node.outputs["BSDF"], add.inputs[1])
+            total = add.outputs["Shader"]
+        gout = b.new("NodeGroupOutput")
+        group.links.new(total, gout.inputs["BSDF"])
+
+    b.layout()
+    return group

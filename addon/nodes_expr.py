@@ -1,0 +1,438 @@
+"""A tiny expression-to-nodes builder for Cycles shader node trees.
+
+Node mode must evaluate the same formulas as the OSL shader (``osl/include/loom/*.h``). Wiring
+hundreds of Math nodes by hand would make a second, unreadable copy of that math; instead the
+formulas are written once more as *Python expressions* that read like the headers, line by line,
+and this module turns each operation into the node that computes it:
+
+    open_ = 1.0 - clamp(c, 0.0, 1.0)          ->  Clamp node, Math SUBTRACT node
+    V = vec(dot(Vw, T), dot(Vw, B), dot(Vw, N))  ->  3 Vector Math DOT_PRODUCT, Combine XYZ
+
+``F`` wraps a float socket, ``V`` a vector (or colour) socket. Python numbers (and 3-tuples for
+vectors) are constants: operations on constants only are folded in Python, constants mixed with
+sockets become the nodes' default input values, so no Value nodes clutter the tree.
+
+Semantics are those of Blender's nodes, which differ from OSL/C++ in two places that the
+transcriptions rely on knowingly: division by zero gives 0 (Math DIVIDE and Vector Math SCALE with
+a safe inverse), and ``normalize`` of the zero vector gives the zero vector (as in OSL).
+Branches (``if`` in the headers) become ``select(cond, a, b)``: both sides are evaluated and a
+Mix node picks one with a 0/1 factor; the safe arithmetic above keeps the unused side finite.
+
+Every node created inside ``with builder.block("title"):`` is parented to a frame with that title
+(the header function it mirrors); ``builder.layout()`` places blocks left to right and, inside a
+block, nodes in columns by dependency depth, in creation order, so the result is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+
+# ------------------------------------------------------------------------------------ builder
+
+
+class Builder:
+    """Creates and links nodes in ``tree`` (a ShaderNodeTree, material or group)."""
+
+    HIDE = {"ShaderNodeMath", "ShaderNodeVectorMath", "ShaderNodeSeparateXYZ",
+            "ShaderNodeCombineXYZ", "ShaderNodeMix", "ShaderNodeClamp"}
+
+    def __init__(self, tree):
+        self.tree = tree
+        self._separate: dict[tuple[str, str], object] = {}
+        self._blocks: list[tuple[object | None, list]] = [(None, [])]
+        self._order: dict[str, int] = {}
+
+    # -- structure
+    @contextmanager
+    def block(self, title: str):
+        """Group the nodes made in this context in a frame labelled ``title``."""
+        frame = self.tree.nodes.new("NodeFrame")
+        frame.label = title
+        frame.name = "Frame " + title[:48]
+        frame.label_size = 14
+        frame.shrink = True
+        self._blocks.append((frame, []))
+        try:
+            yield frame
+        finally:
+            self._blocks.append((None, []))
+
+    def new(self, idname: str, **props):
+        node = self.tree.nodes.new(idname)
+        for k, v in props.items():
+            setattr(node, k, v)
+        frame, members = self._blocks[-1]
+        if frame is not None:
+            node.parent = frame
+        if idname in self.HIDE:
+            node.hide = True
+        members.append(node)
+        self._order[node.name] = len(self._order)
+        return node
+
+    def link(self, value, socket) -> None:
+        """Feed ``value`` (an expression, a number or a 3-tuple) into an input socket."""
+        if isinstance(value, Expr):
+            self.tree.links.new(value.socket, socket)
+        elif isinstance(value, (tuple, list)):
+            dv = socket.default_value
+            if len(dv) == 4 and len(value) == 3:  # colour sockets are RGBA
+                value = (*value, 1.0)
+            socket.default_value = value
+        else:
+            socket.default_value = float(value)
+
+    def label(self, expr: Expr, text: str) -> Expr:
+        """Name a quantity: the label of the node that computes it (shown on hidden nodes)."""
+        if isinstance(expr, Expr):
+            expr.socket.node.label = text
+        return expr
+
+    # -- leaves
+    def float_socket(self, socket) -> F:
+        return F(self, socket)
+
+    def vector_socket(self, socket) -> V:
+        return V(self, socket)
+
+    def separate(self, v: V) -> tuple[F, F, F]:
+        key = (v.socket.node.name, v.socket.identifier)
+        node = self._separate.get(key)
+        if node is None:
+            node = self.new("ShaderNodeSeparateXYZ")
+            self.link(v, node.inputs[0])
+            self._separate[key] = node
+        return tuple(F(self, node.outputs[i]) for i in range(3))
+
+    # -- layout
+    def layout(self, x0: float = 0.0, y0: float = 0.0, col_w: float = 170.0,
+               gap: float = 90.0) -> None:
+        """Place nodes: blocks left to right; inside a block, columns by dependency depth."""
+        x = x0
+        for frame, members in self._blocks:
+            if not members:
+                continue
+            names = {n.name for n in members}
+            depth: dict[str, int] = {}
+            for n in members:  # creation order is a topological order
+                d = 0
+                for s in n.inputs:
+                    for lk in s.links:
+                        if lk.from_node.name in names:
+                            d = max(d, depth.get(lk.from_node.name, 0) + 1)
+                depth[n.name] = d
+            cols: dict[int, list] = {}
+            for n in members:
+                cols.setdefault(depth[n.name], []).append(n)
+            width = 0.0
+            for d in sorted(cols):
+                y = y0
+                cw = col_w
+                for n in cols[d]:
+                    n.location = (x + width, y)
+                    y -= _node_height(n)
+                    cw = max(cw, n.width + 30.0)
+                width += cw
+            x += width + gap
+
+
+def _node_height(node) -> float:
+    if node.hide:
+        return 42.0
+    if node.bl_idname == "ShaderNodeTexImage":
+        return 290.0
+    shown = sum(1 for s in node.inputs if s.enabled and not s.hide)
+    shown += sum(1 for s in node.outputs if s.enabled and not s.hide)
+    return 60.0 + 24.0 * shown
+
+
+# ------------------------------------------------------------------------------ expressions
+
+
+class Expr:
+    __slots__ = ("b", "socket")
+
+    def __init__(self, b: Builder, socket):
+        self.b = b
+        self.socket = socket
+
+
+def _builder(*args) -> Builder | None:
+    for a in args:
+        if isinstance(a, Expr):
+            return a.b
+    return None
+
+
+def _is_num(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _is_vec_const(x) -> bool:
+    return isinstance(x, (tuple, list)) and len(x) == 3 and all(_is_num(c) for c in x)
+
+
+_PY_MATH = {
+    "ADD": lambda a, b: a + b,
+    "SUBTRACT": lambda a, b: a - b,
+    "MULTIPLY": lambda a, b: a * b,
+    "DIVIDE": lambda a, b: a / b if b != 0 else 0.0,
+    "POWER": lambda a, b: a ** b if a >= 0 else 0.0,
+    "MINIMUM": min,
+    "MAXIMUM": max,
+    "LESS_THAN": lambda a, b: 1.0 if a < b else 0.0,
+    "GREATER_THAN": lambda a, b: 1.0 if a > b else 0.0,
+    "SQRT": lambda a: math.sqrt(a) if a > 0 else 0.0,
+    "ABSOLUTE": abs,
+    "EXPONENT": math.exp,
+    "FLOOR": math.floor,
+    "ARCTAN2": math.atan2,
+    "SINE": math.sin,
+    "COSINE": math.cos,
+}
+
+
+def math_op(op: str, *args) -> F | float:
+    """Blender Math node ``op`` on scalars (expressions or numbers)."""
+    b = _builder(*args)
+    if b is None:
+        return float(_PY_MATH[op](*args))
+    node = b.new("ShaderNodeMath", operation=op)
+    for i, a in enumerate(args):
+        b.link(a, node.inputs[i])
+    return F(b, node.outputs[0])
+
+
+def _vec_math(op: str, *args, scale=None, out: str = "Vector"):
+    b = _builder(*args, scale)
+    node = b.new("ShaderNodeVectorMath", operation=op)
+    for i, a in enumerate(args):
+        b.link(a, node.inputs[i])
+    if scale is not None:
+        b.link(scale, node.inputs[3])
+    return V(b, node.outputs[0]) if out == "Vector" else F(b, node.outputs[1])
+
+
+class F(Expr):
+    """A float-valued expression."""
+
+    __slots__ = ()
+
+    def __add__(self, o):
+        return math_op("ADD", self, o)
+
+    def __radd__(self, o):
+        return math_op("ADD", o, self)
+
+    def __sub__(self, o):
+        return math_op("SUBTRACT", self, o)
+
+    def __rsub__(self, o):
+        return math_op("SUBTRACT", o, self)
+
+    def __mul__(self, o):
+        if isinstance(o, V) or _is_vec_const(o):
+            return scale(o, self)
+        return math_op("MULTIPLY", self, o)
+
+    def __rmul__(self, o):
+        if _is_vec_const(o):
+            return scale(o, self)
+        return math_op("MULTIPLY", o, self)
+
+    def __truediv__(self, o):
+        return math_op("DIVIDE", self, o)
+
+    def __rtruediv__(self, o):
+        return math_op("DIVIDE", o, self)
+
+    def __neg__(self):
+        return math_op("MULTIPLY", self, -1.0)
+
+    def __lt__(self, o):
+        return math_op("LESS_THAN", self, o)
+
+    def __gt__(self, o):
+        return math_op("GREATER_THAN", self, o)
+
+
+class V(Expr):
+    """A vector-valued expression (colours too: Cycles converts colour <-> vector freely)."""
+
+    __slots__ = ()
+
+    @property
+    def x(self) -> F:
+        return self.b.separate(self)[0]
+
+    @property
+    def y(self) -> F:
+        return self.b.separate(self)[1]
+
+    @property
+    def z(self) -> F:
+        return self.b.separate(self)[2]
+
+    def __getitem__(self, i: int) -> F:
+        return self.b.separate(self)[i]
+
+    def __add__(self, o):
+        return _vec_math("ADD", self, o)
+
+    def __radd__(self, o):
+        return _vec_math("ADD", o, self)
+
+    def __sub__(self, o):
+        return _vec_math("SUBTRACT", self, o)
+
+    def __rsub__(self, o):
+        return _vec_math("SUBTRACT", o, self)
+
+    def __mul__(self, o):
+        if isinstance(o, V) or _is_vec_const(o):
+            return _vec_math("MULTIPLY", self, o)  # component-wise, like OSL colour * colour
+        return scale(self, o)
+
+    def __rmul__(self, o):
+        return self.__mul__(o)
+
+    def __truediv__(self, o):
+        if isinstance(o, V) or _is_vec_const(o):
+            return _vec_math("DIVIDE", self, o)
+        return scale(self, 1.0 / o)  # Math DIVIDE: 1/0 -> 0, so v/0 -> 0
+
+    def __neg__(self):
+        return scale(self, -1.0)
+
+
+# ------------------------------------------------------------------------------- functions
+
+
+def scale(v, s):
+    """v * s for a vector v and a scalar s."""
+    if _is_vec_const(v) and _is_num(s):
+        return tuple(c * s for c in v)
+    return _vec_math("SCALE", v, scale=s)
+
+
+def vec(x, y, z):
+    """Combine XYZ (a constant tuple when all three are numbers)."""
+    b = _builder(x, y, z)
+    if b is None:
+        return (float(x), float(y), float(z))
+    node = b.new("ShaderNodeCombineXYZ")
+    for i, c in enumerate((x, y, z)):
+        b.link(c, node.inputs[i])
+    return V(b, node.outputs[0])
+
+
+def dot(a, b_):
+    if _is_vec_const(a) and _is_vec_const(b_):
+        return sum(p * q for p, q in zip(a, b_))
+    return _vec_math("DOT_PRODUCT", a, b_, out="Value")
+
+
+def cross(a, b_):
+    return _vec_math("CROSS_PRODUCT", a, b_)
+
+
+def length(v):
+    return _vec_math("LENGTH", v, out="Value")
+
+
+def normalize(v):
+    """Zero vector for a zero input, like OSL's normalize."""
+    return _vec_math("NORMALIZE", v)
+
+
+def sqrt(x):
+    return math_op("SQRT", x)
+
+
+def exp(x):
+    return math_op("EXPONENT", x)
+
+
+def fabs(x):
+    return math_op("ABSOLUTE", x)
+
+
+def floor(x):
+    return math_op("FLOOR", x)
+
+
+def atan2(y, x):
+    return math_op("ARCTAN2", y, x)
+
+
+def max_(a, b_):
+    return math_op("MAXIMUM", a, b_)
+
+
+def min_(a, b_):
+    return math_op("MINIMUM", a, b_)
+
+
+def wrap(x, hi, lo):
+    """Math WRAP: x wrapped into [lo, hi) (x - (hi - lo) floor((x - lo) / (hi - lo)))."""
+    b = _builder(x, hi, lo)
+    if b is None:
+        r = hi - lo
+        return x - r * math.floor((x - lo) / r) if r != 0 else lo
+    return math_op("WRAP", x, hi, lo)
+
+
+def clamp(x, lo, hi):
+    """OSL clamp(x, lo, hi) = min(max(x, lo), hi), one Clamp node (MINMAX)."""
+    b = _builder(x, lo, hi)
+    if b is None:
+        return min(max(x, lo), hi)
+    node = b.new("ShaderNodeClamp", clamp_type="MINMAX")
+    for i, a in enumerate((x, lo, hi)):
+        b.link(a, node.inputs[i])
+    return F(b, node.outputs[0])
+
+
+def select(cond, if_true, if_false):
+    """``cond ? if_true : if_false`` for a 0/1 condition: a Mix node with the condition as its
+    (clamped) factor, float or vector by the type of the operands."""
+    b = _builder(cond, if_true, if_false)
+    if b is None:
+        return if_true if cond else if_false
+    vector = any(isinstance(v, V) or _is_vec_const(v) for v in (if_true, if_false))
+    node = b.new("ShaderNodeMix", data_type="VECTOR" if vector else "FLOAT",
+                 clamp_factor=True)
+    if vector:
+        node.factor_mode = "UNIFORM"
+    kind = "Vector" if vector else "Float"
+    b.link(cond, _by_id(node.inputs, "Factor_Float"))
+    b.link(if_false, _by_id(node.inputs, "A_" + kind))
+    b.link(if_true, _by_id(node.inputs, "B_" + kind))
+    out = _by_id(node.outputs, "Result_" + kind)
+    return V(b, out) if vector else F(b, out)
+
+
+def mix(a, b_, t):
+    """OSL mix(a, b, t) = a (1 - t) + b t, unclamped t, for scalars or vectors (a Mix node
+    with clamping off; vectors with a uniform factor)."""
+    b = _builder(a, b_, t)
+    if b is None:
+        return a * (1 - t) + b_ * t
+    vector = any(isinstance(v, V) or _is_vec_const(v) for v in (a, b_))
+    kind = "Vector" if vector else "Float"
+    node = b.new("ShaderNodeMix", data_type=kind.upper(), clamp_factor=False)
+    if vector:
+        node.factor_mode = "UNIFORM"
+    b.link(t, _by_id(node.inputs, "Factor_Float"))
+    b.link(a, _by_id(node.inputs, "A_" + kind))
+    b.link(b_, _by_id(node.inputs, "B_" + kind))
+    out = _by_id(node.outputs, "Result_" + kind)
+    return V(b, out) if vector else F(b, out)
+
+
+def _by_id(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    raise KeyError(identifier)

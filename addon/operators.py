@@ -1,0 +1,250 @@
+"""Operators: bake & assign (modal, non-blocking), cancel, assign an existing atlas, new material.
+
+Bake & Assign runs loom-bake as a subprocess (bakery.BakeJob) and polls it from a window timer,
+so Blender stays responsive; progress goes to the window manager's progress cursor, the status
+bar and the material panel; Esc or the panel's Cancel button kills the process. Called without
+a window (scripts, ``blender -b``), ``execute`` runs the same job to completion instead.
+"""
+
+import os
+
+import bpy
+from bpy.props import StringProperty
+from bpy.types import Operator
+
+from . import bakery, material, node_mode, preferences
+
+
+def _request(context, mat) -> bakery.BakeRequest:
+    s = mat.loom
+    if s.source == "PRESET":
+        spec = s.preset
+    else:
+        if not s.spec_path:
+            raise bakery.LoomBakeError("no spec file chosen")
+        spec = bpy.path.abspath(s.spec_path)
+    prefs = preferences.get(context)
+    cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
+    return bakery.BakeRequest(spec=spec, quality=s.quality,
+                              loom_bake=(prefs.loom_bake_path or None) if prefs else None,
+                              cache_dir=cache, validate=node_mode.atlas_problem)
+
+
+def apply_atlas(context, mat, obj, atlas_dir: str) -> material.AssignResult:
+    """Build ``mat`` for the atlas with the material's Loom settings."""
+    s = mat.loom
+    manifest = bakery.read_manifest(atlas_dir)
+    scale = s.repeats
+    if s.scale_mode == "PHYSICAL":
+        scale = material.physical_repeats(obj, manifest, s.size_factor)
+    material.mark_managed(mat)
+    return material.build_material(mat, atlas_dir, mode=s.mode, scale=scale, scene=context.scene)
+
+
+def _report_result(op, res: material.AssignResult):
+    # A fallback from a requested or failed OSL build is worth a warning; Auto's choice is not.
+    fell_back = res.mode == "NODES" and ("OSL requested" in res.reason
+                                         or "OSL failed" in res.reason)
+    what = "OSL" if res.mode == "OSL" else "node"
+    op.report({"WARNING" if fell_back else "INFO"},
+              f"Loom: {res.material.name} in {what} mode. {res.reason}")
+
+
+def _redraw_properties(context):
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == "PROPERTIES":
+                area.tag_redraw()
+
+
+class LOOM_OT_bake_assign(Operator):
+    """Bake the material's fabric with loom-bake (cached) and build the material from the atlas"""
+
+    bl_idname = "loom.bake_assign"
+    bl_label = "Bake & Assign"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "material", None) is not None
+
+    # -- blocking (scripts, background)
+    def execute(self, context):
+        mat = context.material
+        try:
+            req = _request(context, mat)
+        except bakery.LoomBakeError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        status = bakery.bake_blocking(req)
+        if status.state != "done":
+            self.report({"ERROR"}, f"Loom: {status.message}")
+            return {"CANCELLED"}
+        return self._assign(context, mat, context.object, status.atlas_dir)
+
+    # -- modal (UI)
+    def invoke(self, context, event):
+        wm = context.window_manager
+        if context.window is None:
+            return self.execute(context)
+        if wm.loom_bake_running:
+            self.report({"WARNING"}, "Loom: a bake is already running")
+            return {"CANCELLED"}
+        mat = context.material
+        try:
+            req = _request(context, mat)
+        except bakery.LoomBakeError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._job = bakery.BakeJob(req)
+        status = self._job.start()
+        if status.finished:
+            self.report({"ERROR"}, f"Loom: {status.message}")
+            return {"CANCELLED"}
+        self._mat_name = mat.name
+        self._obj_name = context.object.name if context.object else ""
+        wm.loom_bake_running = True
+        wm.loom_bake_cancel = False
+        wm.loom_bake_progress = 0.0
+        wm.loom_bake_status = status.message
+        wm.progress_begin(0.0, 1.0)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        wm = context.window_manager
+        if (event.type == "ESC" and event.value == "PRESS") or wm.loom_bake_cancel:
+            self._job.cancel()
+            self._cleanup(context)
+            self.report({"INFO"}, "Loom: bake cancelled")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        status = self._job.poll()
+        wm.loom_bake_progress = status.overall
+        wm.loom_bake_status = status.message
+        wm.progress_update(status.overall)
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"Loom: {status.message} (Esc to cancel)")
+        _redraw_properties(context)
+        if not status.finished:
+            return {"PASS_THROUGH"}
+        self._cleanup(context)
+        if status.state != "done":
+            self.report({"ERROR"}, f"Loom: {status.message}")
+            return {"CANCELLED"}
+        mat = bpy.data.materials.get(self._mat_name)
+        if mat is None:
+            self.report({"WARNING"}, f"Loom: baked {status.atlas_dir}, but material "
+                                     f"{self._mat_name} no longer exists")
+            return {"CANCELLED"}
+        return self._assign(context, mat, bpy.data.objects.get(self._obj_name), status.atlas_dir)
+
+    def cancel(self, context):
+        # Blender ends the modal handler (file load, window closed): kill the process too.
+        self._job.cancel()
+        self._cleanup(context)
+
+    def _cleanup(self, context):
+        wm = context.window_manager
+        if getattr(self, "_timer", None) is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        wm.loom_bake_running = False
+        wm.loom_bake_cancel = False
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        _redraw_properties(context)
+
+    def _assign(self, context, mat, obj, atlas_dir):
+        try:
+            res = apply_atlas(context, mat, obj, atlas_dir)
+        except (bakery.LoomBakeError, OSError, ValueError, KeyError) as exc:
+            self.report({"ERROR"}, f"Loom: cannot build the material from {atlas_dir}: {exc}")
+            return {"CANCELLED"}
+        context.window_manager.loom_bake_status = f"{res.mode.lower()} mode: {res.reason}"
+        _report_result(self, res)
+        warning = material.uv_warning(obj)
+        if warning:
+            self.report({"WARNING"}, f"Loom: {warning}")
+        return {"FINISHED"}
+
+
+class LOOM_OT_bake_cancel(Operator):
+    """Stop the running loom-bake process"""
+
+    bl_idname = "loom.bake_cancel"
+    bl_label = "Cancel Bake"
+    bl_options = {"INTERNAL"}
+
+    def execute(self, context):
+        context.window_manager.loom_bake_cancel = True
+        return {"FINISHED"}
+
+
+class LOOM_OT_assign_atlas(Operator):
+    """Build the material from an already baked atlas directory"""
+
+    bl_idname = "loom.assign_atlas"
+    bl_label = "Use Atlas"
+    bl_options = {"REGISTER", "UNDO"}
+
+    directory: StringProperty(subtype="DIR_PATH")
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "material", None) is not None
+
+    def invoke(self, context, event):
+        if not self.directory and context.material.loom.atlas_dir:
+            self.directory = context.material.loom.atlas_dir
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        atlas = bpy.path.abspath(self.directory or context.material.loom.atlas_dir)
+        if not os.path.isfile(os.path.join(atlas, "manifest.json")):
+            self.report({"ERROR"}, f"Loom: {atlas} is not an atlas (no manifest.json)")
+            return {"CANCELLED"}
+        try:
+            res = apply_atlas(context, context.material, context.object, atlas)
+        except (bakery.LoomBakeError, OSError, ValueError, KeyError) as exc:
+            self.report({"ERROR"}, f"Loom: {exc}")
+            return {"CANCELLED"}
+        _report_result(self, res)
+        warning = material.uv_warning(context.object)
+        if warning:
+            self.report({"WARNING"}, f"Loom: {warning}")
+        return {"FINISHED"}
+
+
+class LOOM_OT_material_new(Operator):
+    """Add a Loom material to the active object (or let Loom manage the active material)"""
+
+    bl_idname = "loom.material_new"
+    bl_label = "Loom Material"
+    bl_options = {"REGISTER", "UNDO"}
+
+    adopt: bpy.props.BoolProperty(
+        name="Adopt Active",
+        description="Let Loom manage (and rebuild) the active material instead of adding one",
+        default=False,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.object
+        return obj is not None and hasattr(obj.data, "materials")
+
+    def execute(self, context):
+        obj = context.object
+        if self.adopt and obj.active_material is not None:
+            material.mark_managed(obj.active_material)
+        else:
+            material.ensure_material(obj)
+        return {"FINISHED"}
+
+
+classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new)

@@ -1,0 +1,191 @@
+"""Shared helpers of Loom's Blender tests (imported by the test scripts, run inside Blender).
+
+Arguments after ``--`` are parsed by each test with ``parse_args``; common ones:
+  --loom-bake PATH   loom-bake to use (inside the Blender chroot: a host-exec wrapper, see
+                     scripts/blender.sh host-exec-wrapper); default $LOOM_BAKE
+  --atlas DIR        an atlas baked beforehand (skips baking where a test allows it)
+  --out DIR          where to write renders (default: a temporary directory)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import traceback
+
+import bpy
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+EXT_REPO_MODULE = "loom_dev"
+
+
+def parse_args(extra=None) -> argparse.Namespace:
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    p = argparse.ArgumentParser()
+    p.add_argument("--loom-bake", default=os.environ.get("LOOM_BAKE"))
+    p.add_argument("--atlas", default=None)
+    p.add_argument("--out", default=None)
+    if extra:
+        extra(p)
+    args = p.parse_args(argv)
+    if args.out is None:
+        args.out = tempfile.mkdtemp(prefix="loom-test-")
+    os.makedirs(args.out, exist_ok=True)
+    return args
+
+
+def enable_addon():
+    """Enable the add-on from this checkout's addon/ directory the way Blender loads
+    extensions: a local extension repository (a temporary directory) holding a symlink
+    ``loom -> addon/``; the package becomes ``bl_ext.loom_dev.loom``."""
+    import addon_utils
+
+    module = f"bl_ext.{EXT_REPO_MODULE}.loom"
+    prefs = bpy.context.preferences
+    repo = next((r for r in prefs.extensions.repos if r.module == EXT_REPO_MODULE), None)
+    if repo is None:
+        tmp = tempfile.mkdtemp(prefix="loom-ext-")
+        os.symlink(os.path.join(REPO, "addon"), os.path.join(tmp, "loom"))
+        prefs.extensions.repos.new(name=EXT_REPO_MODULE, module=EXT_REPO_MODULE,
+                                   custom_directory=tmp, source="USER")
+    errors = []
+    mod = addon_utils.enable(module, default_set=True, handle_error=lambda e: errors.append(e))
+    if mod is None or errors:
+        raise RuntimeError(f"enabling {module} failed: {errors}")
+    return mod
+
+
+def disable_addon():
+    import addon_utils
+
+    addon_utils.disable(f"bl_ext.{EXT_REPO_MODULE}.loom", default_set=True)
+
+
+def run(main):
+    """Run a test's main(); print PASS/FAIL; exit 1 on failure (with --python-exit-code 1
+    an exception would do too, but an explicit exit also covers a missing flag)."""
+    name = "test"
+    if "--python" in sys.argv:
+        name = os.path.basename(sys.argv[sys.argv.index("--python") + 1])
+    try:
+        main()
+    except Exception as exc:  # report and fail
+        traceback.print_exc()
+        print(f"loom-test {name}: FAIL: {exc}", flush=True)
+        sys.stdout.flush()
+        os._exit(1)
+    print(f"loom-test {name}: PASS", flush=True)
+
+
+# ------------------------------------------------------------------------------- scenes
+
+
+def empty_scene():
+    # read_homefile, not read_factory_settings: the latter also resets the preferences, which
+    # would drop the extension repository and the enabled add-on.
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.seed = 1
+    # Film values must be linear radiance: no view transform, no look, no exposure.
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    world = bpy.data.worlds.new("Black")
+    world.use_nodes = False
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    return scene
+
+
+def add_plane(name: str, half: float, uv_per_meter: float = 1.0, location=(0, 0, 0)):
+    """A square in z = 0, normal +z, UV = world xy * uv_per_meter (u along +x, v along +y)."""
+    mesh = bpy.data.meshes.new(name)
+    verts = [(-half, -half, 0.0), (half, -half, 0.0), (half, half, 0.0), (-half, half, 0.0)]
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    for loop in mesh.loops:
+        x, y, _ = verts[loop.vertex_index]
+        uv.data[loop.index].uv = (x * uv_per_meter, y * uv_per_meter)
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def look_along(obj, direction):
+    """Orient a camera or light so that its local -Z points along ``direction``."""
+    from mathutils import Vector
+
+    d = Vector(direction).normalized()
+    obj.rotation_mode = "QUATERNION"
+    obj.rotation_quaternion = (-d).to_track_quat("Z", "Y")
+
+
+def diffuse_material(name="Diffuse", color=(1.0, 1.0, 1.0)):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*color, 1.0)
+    d.inputs["Roughness"].default_value = 0.0
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(d.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def render_to_exr(scene, path: str) -> "Image":
+    """Render the scene to a 32-bit float OpenEXR (linear radiance) and return its pixels."""
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.image_settings.exr_codec = "ZIP"
+    scene.render.filepath = path
+    scene.render.use_file_extension = False
+    bpy.ops.render.render(write_still=True)
+    return load_pixels(path)
+
+
+class Image:
+    """Float RGBA pixels (no numpy: Debian's Blender has none)."""
+
+    def __init__(self, w, h, px):
+        self.w, self.h, self.px = w, h, px
+
+    def channel_mean(self, c: int) -> float:
+        vals = self.px[c::4]
+        return math.fsum(vals) / len(vals)
+
+    def rgb_mean(self) -> float:
+        return sum(self.channel_mean(c) for c in range(3)) / 3.0
+
+    def finite(self) -> bool:
+        return all(math.isfinite(v) for v in self.px)
+
+    def rgb_max(self) -> float:
+        return max(v for i, v in enumerate(self.px) if i % 4 != 3)
+
+
+def load_pixels(path: str) -> Image:
+    import array
+
+    img = bpy.data.images.load(path, check_existing=False)
+    w, h = img.size
+    px = array.array("f", [0.0]) * (w * h * 4)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    return Image(w, h, px)
+
+
+def unit(v):
+    n = math.sqrt(sum(c * c for c in v))
+    return tuple(c / n for c in v)

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# CTest fixture for the Blender tests: a wrapper through which Blender (possibly inside Loom's
+# Debian chroot) runs the host's loom-bake, and a test atlas baked on the host.
+#   setup_fixture.sh LOOM_BAKE OUT_DIR
+set -euo pipefail
+bake=$(readlink -f "$1")
+out=$2
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+rm -rf "$out"
+mkdir -p "$out/bin"
+# A private copy: a rebuild of loom-bake during the tests must not change it halfway.
+cp "$bake" "$out/bin/loom-bake"
+bash "$repo/scripts/blender.sh" host-exec-wrapper "$out/bin/loom-bake" "$out/bin/loom-bake-wrapper"
+"$out/bin/loom-bake" bake plain -o "$out/atlas-plain" --quality preview --progress=none
+echo "fixture ready in $out"

@@ -1,0 +1,260 @@
+"""Bake & assign through the add-on: loom.api.bake (loom-bake as a subprocess, cached), the
+Bake & Assign operator's blocking path, error reporting, cancellation, and node mode, with no
+Script node anywhere when this Blender has no OSL.
+
+    blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_bake_assign.py \
+        -- --loom-bake LOOM_BAKE [--out DIR]
+
+LOOM_BAKE must run where Blender runs: for the Debian chroot of scripts/blender.sh, a wrapper
+made with `scripts/blender.sh host-exec-wrapper HOST_LOOM_BAKE WRAPPER`.
+"""
+
+import json
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import loom_testlib as lt  # noqa: E402
+
+import bpy  # noqa: E402
+
+
+def script_nodes():
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree]
+    trees += list(bpy.data.node_groups)
+    return [n for t in trees for n in t.nodes if n.bl_idname == "ShaderNodeScript"]
+
+
+class FakeOp:
+    """Stands in for an operator instance, so that the modal Bake & Assign operator's invoke /
+    modal / cancel code can be driven without a window (blender -b has none): the operator
+    class's own functions are bound to this object."""
+
+    def __init__(self, cls):
+        self._cls = cls
+        self.reports = []
+
+    def report(self, level, message):
+        self.reports.append((set(level), message))
+
+    def __getattr__(self, name):
+        return getattr(self._cls, name).__get__(self)
+
+
+class FakeWM:
+    """The window-manager calls the modal operator makes, recorded."""
+
+    def __init__(self):
+        self.loom_bake_running = self.loom_bake_cancel = False
+        self.loom_bake_progress, self.loom_bake_status = 0.0, ""
+        self.windows, self.calls, self.progress = [], [], []
+
+    def event_timer_add(self, step, window=None):
+        self.calls.append("timer_add")
+        return object()
+
+    def event_timer_remove(self, timer):
+        self.calls.append("timer_remove")
+
+    def modal_handler_add(self, op):
+        self.calls.append("modal_handler_add")
+
+    def progress_begin(self, a, b):
+        self.calls.append("progress_begin")
+
+    def progress_update(self, v):
+        self.progress.append(v)
+
+    def progress_end(self):
+        self.calls.append("progress_end")
+
+
+class FakeWorkspace:
+    def __init__(self):
+        self.status = []
+
+    def status_text_set(self, text):
+        self.status.append(text)
+
+
+def drive_modal(obj, mat, esc_after=None, timeout=120.0):
+    """invoke, then TIMER events (and an Esc after ``esc_after`` s) until the operator ends."""
+    from types import SimpleNamespace
+
+    op_cls = bpy.types.LOOM_OT_bake_assign
+    wm, ws = FakeWM(), FakeWorkspace()
+    ctx = SimpleNamespace(window=object(), window_manager=wm, workspace=ws, material=mat,
+                          object=obj, scene=bpy.context.scene,
+                          preferences=bpy.context.preferences)
+    op = FakeOp(op_cls)
+    res = op.invoke(ctx, SimpleNamespace(type="NONE", value="NOTHING"))
+    assert res == {"RUNNING_MODAL"}, (res, op.reports)
+    assert wm.loom_bake_running and "modal_handler_add" in wm.calls
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        time.sleep(0.1)
+        if esc_after is not None and time.monotonic() - t0 > esc_after:
+            res = op.modal(ctx, SimpleNamespace(type="ESC", value="PRESS"))
+        else:
+            res = op.modal(ctx, SimpleNamespace(type="TIMER", value="NOTHING"))
+        # Other events pass through: the UI stays usable during a bake.
+        assert op.modal(ctx, SimpleNamespace(type="MOUSEMOVE", value="NOTHING")) in (
+            {"PASS_THROUGH"}, {"FINISHED"}, {"CANCELLED"})
+        if res != {"PASS_THROUGH"}:
+            break
+    assert not wm.loom_bake_running, "loom_bake_running left set"
+    assert "timer_remove" in wm.calls and "progress_end" in wm.calls, wm.calls
+    assert ws.status and ws.status[-1] is None, "status text not cleared"
+    return res, op, wm
+
+
+def main():
+    args = lt.parse_args()
+    import _cycles
+
+    assert args.loom_bake, "--loom-bake (or $LOOM_BAKE) is required"
+    mod = lt.enable_addon()
+    import loom.api
+    from loom import bakery
+
+    prefs = bpy.context.preferences.addons[mod.__name__].preferences
+    cache = os.path.join(args.out, "cache")
+    prefs.loom_bake_path = args.loom_bake
+    prefs.cache_dir = cache
+    assert loom.api.find_loom_bake() == os.path.abspath(args.loom_bake)
+
+    # Presets come from loom-bake.
+    presets = loom.api.presets()
+    assert "plain" in presets and "twill" in presets, presets
+
+    # 1. Blocking bake through the API (uses the preferences), then a cached re-bake.
+    t0 = time.monotonic()
+    atlas = loom.api.bake("plain", quality="draft")
+    t_bake = time.monotonic() - t0
+    assert os.path.isfile(os.path.join(atlas, "manifest.json")), atlas
+    assert os.path.dirname(atlas) == os.path.abspath(cache), atlas
+    with open(os.path.join(atlas, "manifest.json")) as f:
+        assert json.load(f)["quality"] == "draft"
+    job = bakery.BakeJob(bakery.BakeRequest("plain", "draft", args.loom_bake, cache))
+    job.start()
+    st = job.wait(timeout=120)
+    assert st.state == "done" and st.reused and st.atlas_dir == atlas, st
+    print(f"loom-test: baked {atlas} in {t_bake:.1f} s; re-bake reused it")
+
+    # 2. A spec file with the same content as a preset maps to the same cache entry.
+    spec_file = os.path.join(args.out, "my_plain.json")
+    with open(spec_file, "w") as f:
+        f.write(bakery.run_loom_bake(args.loom_bake, ["presets", "plain"]))
+    assert loom.api.bake(spec_file, quality="draft") == atlas, "equal specs, different atlases"
+
+    # 3. Errors are reported with loom-bake's message.
+    try:
+        loom.api.bake("no_such_preset_xyz", quality="draft")
+    except loom.api.LoomError as exc:
+        assert "no_such_preset_xyz" in str(exc), str(exc)
+        print(f"loom-test: error reported: {exc}")
+    else:
+        raise AssertionError("baking an unknown preset did not fail")
+    try:
+        loom.api.bake("plain", quality="ultra")
+    except loom.api.LoomError as exc:
+        assert "quality" in str(exc)
+    else:
+        raise AssertionError("an unknown quality did not fail")
+
+    # 4. Cancelling kills the process.
+    job = bakery.BakeJob(bakery.BakeRequest("satin", "final", args.loom_bake, cache, force=True))
+    job.start()
+    deadline = time.monotonic() + 30
+    while job.status.state == "checking" and time.monotonic() < deadline:
+        job.poll()
+        time.sleep(0.02)
+    st = job.cancel()
+    assert st.state == "cancelled", st
+    proc = job._proc.proc
+    assert proc.poll() is not None, "loom-bake still running after cancel"
+    print("loom-test: cancel killed loom-bake")
+
+    # 5. The operator (blocking path, as scripts call it) on a material flagged for Loom.
+    scene = lt.empty_scene()
+    plane = lt.add_plane("Cloth", half=0.5)
+    bpy.context.view_layer.objects.active = plane
+    with bpy.context.temp_override(object=plane):
+        assert bpy.ops.loom.material_new() == {"FINISHED"}
+    mat = plane.active_material
+    assert mat is not None and mat.loom.managed
+    mat.loom.source = "PRESET"
+    mat.loom.preset = "plain"
+    mat.loom.quality = "draft"
+    mat.loom.mode = "AUTO"
+    mat.loom.scale_mode = "REPEATS"
+    mat.loom.repeats = 12.5
+    with bpy.context.temp_override(object=plane, material=mat):
+        res = bpy.ops.loom.bake_assign()
+    assert res == {"FINISHED"}, res
+    assert mat.loom.atlas_dir == atlas, (mat.loom.atlas_dir, atlas)
+    expect_mode = "OSL" if _cycles.with_osl else "NODES"
+    assert mat.loom.mode_used == expect_mode, (mat.loom.mode_used, mat.loom.status)
+    group_nodes = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
+    if expect_mode == "NODES":
+        assert len(group_nodes) == 1 and group_nodes[0].node_tree.name == "Loom Surface (plain)"
+        assert abs(group_nodes[0].inputs["Scale"].default_value - 12.5) < 1e-6
+        # Scale edits apply in place.
+        mat.loom.repeats = 20.0
+        assert abs(group_nodes[0].inputs["Scale"].default_value - 20.0) < 1e-6
+    print(f"loom-test: operator built {mat.name} in {mat.loom.mode_used} mode: {mat.loom.status}")
+
+    # 5b. The modal path (what the panel's button runs), driven with a stand-in window manager:
+    #     progress reported, material built; and Esc kills a running bake.
+    mat.loom.quality = "preview"  # not cached yet: a real bake with progress
+    res, op, wm = drive_modal(plane, mat)
+    assert res == {"FINISHED"}, (res, op.reports)
+    assert wm.progress and max(wm.progress) == 1.0 and wm.progress == sorted(wm.progress), \
+        wm.progress
+    assert mat.loom.atlas_dir.startswith(os.path.abspath(cache)) and "preview" in mat.loom.atlas_dir
+    print(f"loom-test: modal bake: {len(wm.progress)} progress updates, reports {op.reports}")
+    mat.loom.quality = "final"
+    res, op, wm = drive_modal(plane, mat, esc_after=1.5)
+    assert res == {"CANCELLED"}, (res, op.reports)
+    assert op._job.status.state == "cancelled" and op._job._proc.proc.poll() is not None
+    assert "preview" in mat.loom.atlas_dir, "a cancelled bake changed the material"
+    print("loom-test: Esc cancelled the modal bake and killed loom-bake")
+    mat.loom.quality = "draft"
+    loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
+
+    # 6. The API in every mode; without OSL nothing may leave a Script node behind.
+    for mode in ("auto", "osl", "nodes"):
+        m = loom.api.assign(plane, atlas, mode=mode, scale=None)
+        used = loom.api.last_assign()["mode"]
+        if not _cycles.with_osl:
+            assert used == "NODES", (mode, used)
+            assert not script_nodes(), f"Script node left in {mode} mode without OSL"
+        assert m == mat, "assign did not reuse the Loom material"
+    assert len([m for m in bpy.data.materials if m.users]) == 1
+    # Physical scale: 1 m of UV per metre here, repeat 714 um -> 1400 repeats.
+    assert abs(loom.api.last_assign()["scale"] - 1400.0) < 2.0, loom.api.last_assign()
+    if not _cycles.with_osl:
+        print("loom-test: Blender without OSL: node mode everywhere, no Script node")
+
+    # 7. Where Cycles claims OSL but the Script node cannot be compiled, OSL mode must fall back
+    #    to nodes and remove its Script node (simulated on a Blender without OSL).
+    if not _cycles.with_osl:
+        _cycles.with_osl = True
+        try:
+            loom.api.assign(plane, atlas, mode="osl", scale=3.0)
+        finally:
+            _cycles.with_osl = False
+        info = loom.api.last_assign()
+        assert info["mode"] == "NODES" and "OSL failed" in info["reason"], info
+        assert not script_nodes(), "a Script node was left after a failed OSL build"
+        print(f"loom-test: failed OSL build fell back: {info['reason']}")
+
+    # 8. The atlas's images are set up as data.
+    for img in bpy.data.images:
+        if img.name.startswith("Loom "):
+            assert img.colorspace_settings.name == "Non-Color", img.name
+            assert img.alpha_mode == "CHANNEL_PACKED", img.name
+
+
+lt.run(main)

@@ -1,0 +1,175 @@
+"""Parity: node mode in Cycles against loom-bake's closure emulator.
+
+A flat swatch (z = 0, UV = world xy) filled with many weave repeats is seen by an orthographic
+camera from direction wo and lit by one sun from direction wi (both in the tangent frame, which
+here is the world frame: x = warp = u, y = weft = v, z = normal). Direct light only (no bounces,
+black world), so every pixel is radiance L = f(wi, wo) E |cos theta_i| averaged over the pixel's
+footprint. With the atlas maps read texel by texel (Image Texture interpolation 'Closest') and
+many repeats in view, the image mean is the mean of f over the texels of one repeat, which is what
+``loom-bake eval bsdf --average --evaluator closures`` computes with Cycles' own formulas in C++.
+
+Units are checked in the same run with a white Diffuse BSDF swatch: L = E cos theta_i / pi.
+
+Run (inside Blender):
+    blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_parity.py -- \
+        --loom-bake LOOM_BAKE --atlas ATLAS [--samples 64] [--res 64] [--tolerance 0.03]
+LOOM_BAKE must run where Blender runs (inside the chroot: a host-exec wrapper). Without
+--atlas, the plain preset is baked into --out through loom.api.bake.
+"""
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import loom_testlib as lt  # noqa: E402
+
+import bpy  # noqa: E402
+
+# (wi towards the light, wo towards the viewer), tangent frame. Chosen to cover: normal
+# incidence, off-specular, mirror configurations in the warp and the weft planes (the glossy
+# lobe), a generic azimuth, grazing light, light from behind (translucency), and the cloth seen
+# from below (back faces: Cycles flips the normal, the model mirrors z), lit from below and
+# from above.
+PAIRS = [
+    ((0.0, 0.0, 1.0), (0.0, 0.0, 1.0)),
+    ((0.5, 0.0, 0.866), (0.0, 0.0, 1.0)),
+    ((0.5, 0.0, 0.866), (-0.5, 0.0, 0.866)),
+    ((0.0, 0.6, 0.8), (0.0, -0.6, 0.8)),
+    ((0.3, 0.4, 0.866), (-0.6, 0.2, 0.775)),
+    ((0.8, 0.0, 0.6), (0.0, 0.7, 0.714)),
+    ((0.2, 0.1, -0.975), (0.0, 0.3, 0.954)),
+    ((0.3, -0.2, -0.933), (-0.2, 0.4, -0.894)),
+    ((0.1, 0.5, 0.86), (0.4, 0.0, -0.917)),
+]
+# Node mode is compared with the emulator's node-mode backend (loom-bake eval --backend nodes):
+# Cycles' SVM Translucent BSDF lifts its normal with ensure_valid_specular_reflection when the
+# material's Bump Map Correction is on (kernel/svm/closure.h), OSL's translucent() does not; the
+# emulator models both.
+SUN = 3.0
+REPEATS_PER_METER = 173.3  # irrational-ish: no aliasing with the pixel grid
+
+
+def extra_args(p):
+    p.add_argument("--samples", type=int, default=64)
+    p.add_argument("--res", type=int, default=64)
+    p.add_argument("--tolerance", type=float, default=0.03)
+    p.add_argument("--interpolation", default="Closest", choices=["Closest", "Linear"])
+    p.add_argument("--pairs", default="", help="comma-separated pair indices (default all)")
+    p.add_argument("--json", default=None, help="write the measured numbers here")
+
+
+def eval_closures(loom_bake, atlas, wi, wo, evaluator="closures"):
+    out = subprocess.run(
+        [loom_bake, "eval", "bsdf", "--atlas", atlas, "--average", "--evaluator", evaluator,
+         *(["--backend", "nodes"] if evaluator == "closures" else []),
+         "--wi", ",".join(f"{c:.6f}" for c in wi), "--wo", ",".join(f"{c:.6f}" for c in wo)],
+        capture_output=True, text=True, check=True).stdout
+    return json.loads(out)["f"]
+
+
+def setup(args, wi, wo):
+    scene = lt.empty_scene()
+    scene.cycles.samples = args.samples
+    scene.cycles.max_bounces = 0  # direct light only
+    scene.cycles.light_sampling_threshold = 0.0  # no stochastic shadow-ray termination
+    scene.cycles.sample_clamp_direct = 0.0
+    scene.render.resolution_x = scene.render.resolution_y = args.res
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = False
+
+    plane = lt.add_plane("Swatch", half=60.0, uv_per_meter=1.0)
+
+    cam_data = bpy.data.cameras.new("Ortho")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 1.0
+    cam_data.clip_end = 100.0
+    cam = bpy.data.objects.new("Camera", cam_data)
+    cam.location = tuple(10.0 * c for c in wo)
+    lt.look_along(cam, tuple(-c for c in wo))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+    sun_data = bpy.data.lights.new("Sun", type="SUN")
+    sun_data.energy = SUN
+    sun_data.angle = 0.0  # a delta light: no penumbra noise
+    sun = bpy.data.objects.new("Sun", sun_data)
+    lt.look_along(sun, tuple(-c for c in wi))
+    scene.collection.objects.link(sun)
+    return scene, plane
+
+
+def main():
+    args = lt.parse_args(extra_args)
+    lt.enable_addon()
+    import loom.api
+
+    loom_bake = loom.api.find_loom_bake(args.loom_bake)
+    assert loom_bake, "no loom-bake (--loom-bake or $LOOM_BAKE)"
+    atlas = args.atlas or loom.api.bake("plain", "preview", loom_bake=loom_bake,
+                                        cache_dir=os.path.join(args.out, "cache"))
+    pairs = list(enumerate(PAIRS))
+    if args.pairs:
+        keep = {int(i) for i in args.pairs.split(",")}
+        pairs = [p for p in pairs if p[0] in keep]
+
+    rows, failures = [], []
+    for idx, (wi, wo) in pairs:
+        wi, wo = lt.unit(wi), lt.unit(wo)
+        cos_i = abs(wi[2])
+        f_c = eval_closures(loom_bake, atlas, wi, wo, "closures")
+        f_m = eval_closures(loom_bake, atlas, wi, wo, "model")
+        expect = [c * SUN * cos_i for c in f_c]
+
+        scene, plane = setup(args, wi, wo)
+        mat = loom.api.assign(plane, atlas, mode="nodes", scale=REPEATS_PER_METER,
+                              interpolation=args.interpolation)
+        assert loom.api.last_assign()["mode"] == "NODES"
+        t0 = time.monotonic()
+        img = lt.render_to_exr(scene, os.path.join(args.out, f"parity_{idx}.exr"))
+        dt = time.monotonic() - t0
+        assert img.finite(), "non-finite pixels"
+        got = [img.channel_mean(c) for c in range(3)]
+
+        # Units: the same view and light on a white Lambertian swatch.
+        plane.data.materials.clear()
+        plane.data.materials.append(lt.diffuse_material())
+        ctrl = lt.render_to_exr(scene, os.path.join(args.out, f"control_{idx}.exr"))
+        ctrl_got = ctrl.rgb_mean()
+        # One-sided Lambertian about the normal Cycles turns towards the viewer.
+        ctrl_expect = SUN * cos_i / math.pi if wi[2] * wo[2] > 0 else 0.0
+
+        rel = [abs(g - e) / max(abs(e), 1e-6) for g, e in zip(got, expect)]
+        mean_got, mean_exp = sum(got) / 3, sum(expect) / 3
+        rel_mean = abs(mean_got - mean_exp) / max(mean_exp, 1e-6)
+        row = dict(pair=idx, wi=wi, wo=wo, render=got, closures=expect,
+                   model=[c * SUN * cos_i for c in f_m], rel=rel, rel_mean=rel_mean,
+                   control=ctrl_got, control_expect=ctrl_expect, seconds=dt)
+        rows.append(row)
+        print(f"loom-parity pair {idx}: wi={tuple(round(c, 3) for c in wi)} "
+              f"wo={tuple(round(c, 3) for c in wo)}  render RGB "
+              f"{got[0]:.5f} {got[1]:.5f} {got[2]:.5f}  closures {expect[0]:.5f} "
+              f"{expect[1]:.5f} {expect[2]:.5f}  model-mean {sum(row['model']) / 3:.5f}  "
+              f"rel.err {max(rel):.4f} (mean {rel_mean:.4f})  control {ctrl_got:.5f} vs "
+              f"{ctrl_expect:.5f}  [{dt:.1f} s]", flush=True)
+        if ctrl_expect > 0 and abs(ctrl_got - ctrl_expect) > 0.01 * ctrl_expect:
+            failures.append(f"pair {idx}: diffuse control {ctrl_got:.5f} != E cos/pi "
+                            f"{ctrl_expect:.5f} (units or colour management)")
+        # Every channel within the tolerance (the darkest channels included).
+        worst = max(r for r, e in zip(rel, expect) if e > 1e-4)
+        if worst > args.tolerance:
+            failures.append(f"pair {idx}: render {got} vs closures {expect} "
+                            f"({100 * worst:.2f}% > {100 * args.tolerance:.0f}% in a channel)")
+        for n in list(bpy.data.node_groups):
+            bpy.data.node_groups.remove(n)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    assert len(rows) >= 5 or args.pairs, f"only {len(rows)} pairs checked"
+    assert not failures, "; ".join(failures)
+
+
+lt.run(main)
