@@ -13,7 +13,7 @@ import os
 
 import bpy
 
-from . import bakery, material as _material, node_mode
+from . import bakery, colour_config, material as _material, node_mode
 from .bakery import LoomBakeError as LoomError, read_manifest
 
 __all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign"]
@@ -62,8 +62,10 @@ def bake(spec: str, quality: str = "preview", loom_bake: str | None = None,
     if exe is None:
         raise LoomError("loom-bake not found: pass loom_bake=, set it in the add-on "
                         "preferences, set $LOOM_BAKE, or put it on PATH")
-    req = bakery.BakeRequest(spec=spec, quality=quality, loom_bake=exe,
-                             cache_dir=resolve_cache_dir(cache_dir), force=force,
+    cache = resolve_cache_dir(cache_dir)
+    os.makedirs(cache, exist_ok=True)
+    req = bakery.BakeRequest(spec=spec, quality=quality, loom_bake=exe, cache_dir=cache,
+                             force=force, ocio_config=colour_config.staged(cache),
                              validate=node_mode.atlas_problem)
     status = bakery.bake_blocking(req, timeout=timeout)
     if status.state != "done":

@@ -228,6 +228,9 @@ class BakeRequest:
     loom_bake: str | None = None  # None: find_loom_bake()
     cache_dir: str | None = None  # None: default_cache_dir()
     force: bool = False
+    # OpenColorIO config for the spec's colours (Blender's, staged by colour_config.staged());
+    # None: loom-bake's built-in sRGB -> linear Rec.709, which equals Blender's default.
+    ocio_config: str | None = None
     # Optional check of a finished atlas: returns None if this add-on can use it, else why not.
     # loom-bake reuses an atlas of the same spec even if an older loom-bake wrote it in another
     # layout; an incompatible atlas is therefore re-baked once with --force.
@@ -384,6 +387,8 @@ class BakeJob:
                 "--progress=json"]
         if self._forced:
             argv.append("--force")
+        if r.ocio_config:
+            argv += ["--ocio-config", r.ocio_config]
         return self._launch(argv)
 
     def _bake_line(self, line: str) -> None:

@@ -12,7 +12,7 @@ import bpy
 from bpy.props import StringProperty
 from bpy.types import Operator
 
-from . import bakery, material, node_mode, preferences
+from . import bakery, colour_config, material, node_mode, preferences
 
 
 def _request(context, mat) -> bakery.BakeRequest:
@@ -25,9 +25,12 @@ def _request(context, mat) -> bakery.BakeRequest:
         spec = bpy.path.abspath(s.spec_path)
     prefs = preferences.get(context)
     cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
+    cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))
+    os.makedirs(cache, exist_ok=True)
     return bakery.BakeRequest(spec=spec, quality=s.quality,
                               loom_bake=(prefs.loom_bake_path or None) if prefs else None,
-                              cache_dir=cache, validate=node_mode.atlas_problem)
+                              cache_dir=cache, ocio_config=colour_config.staged(cache),
+                              validate=node_mode.atlas_problem)
 
 
 def apply_atlas(context, mat, obj, atlas_dir: str) -> material.AssignResult:

@@ -135,8 +135,15 @@ def main():
     assert os.path.isfile(os.path.join(atlas, "manifest.json")), atlas
     assert os.path.dirname(atlas) == os.path.abspath(cache), atlas
     with open(os.path.join(atlas, "manifest.json")) as f:
-        assert json.load(f)["quality"] == "draft"
-    job = bakery.BakeJob(bakery.BakeRequest("plain", "draft", args.loom_bake, cache))
+        m = json.load(f)
+    assert m["quality"] == "draft"
+    # The spec's sRGB colours went through this Blender's OCIO config (staged in the cache).
+    from loom import colour_config
+    ocio = colour_config.staged(cache)
+    assert ocio and m["colour"]["config"] == ocio, (m["colour"], ocio)
+    assert m["colour"]["to"] == "scene_linear", m["colour"]
+    job = bakery.BakeJob(bakery.BakeRequest("plain", "draft", args.loom_bake, cache,
+                                            ocio_config=ocio))
     job.start()
     st = job.wait(timeout=120)
     assert st.state == "done" and st.reused and st.atlas_dir == atlas, st
