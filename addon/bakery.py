@@ -33,7 +33,9 @@ from dataclasses import dataclass, field
 
 QUALITIES = ("draft", "preview", "final", "reference")
 # Shown when loom-bake cannot be asked (not installed yet); `loom-bake presets` is the truth.
-FALLBACK_PRESETS = ("default", "plain", "twill", "satin", "basket")
+# Same order as `loom-bake presets` (default, then alphabetical): Blender stores a dynamic enum
+# by index, so a different order would change a saved choice once loom-bake is found.
+FALLBACK_PRESETS = ("default", "basket", "plain", "satin", "twill")
 DEFAULT_CACHE_DIR = os.path.join("~", ".cache", "loom", "atlases")
 
 

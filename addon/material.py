@@ -239,6 +239,8 @@ def _build_osl(mat, atlas_dir, manifest, scale):
         nt.links.new(tan.outputs["Tangent"], script.inputs["Tangent"])
     if "Scale" in script.inputs:
         script.inputs["Scale"].default_value = scale
+    if "Aspect" in script.inputs:
+        script.inputs["Aspect"].default_value = node_mode.repeat_aspect(manifest)
     nt.links.new(script.outputs["BSDF"], out.inputs["Surface"])
 
 

@@ -57,10 +57,10 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO
 # fails when a source's code changes: read the diff, update the transcription below, run
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
-    "include/loom/closure_mapping.h": "8847472ce161a9d3",
+    "include/loom/closure_mapping.h": "c45bf04a19424a79",
     "include/loom/visibility.h": "748a60042d62eda6",
     "include/loom/sggx.h": "bb8987c508a03304",
-    "loom_cloth_surface.osl": "ae767a6307a4dd1c",
+    "loom_cloth_surface.osl": "1bf56f5e1585d5d4",
 }
 
 
@@ -147,6 +147,15 @@ def _balanced_sum(terms):
 # ======================================================================= closure_mapping.h
 
 
+def repeat_aspect(manifest) -> float:
+    """Lx / Ly of the weave repeat (manifest repeat.size_um): the shader's Aspect."""
+    try:
+        lx, ly = (float(v) for v in manifest["repeat"]["size_um"])
+        return lx / ly if lx > 0 and ly > 0 else 1.0
+    except (KeyError, TypeError, ValueError):
+        return 1.0
+
+
 def surface_glossy_normal(t: V) -> V:
     """closure_mapping.h: surface_glossy_normal(t).
 
@@ -206,6 +215,14 @@ def surface_lut_uv(kind, x, y, slice_, K):
     lut_u = (0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / n
     lut_v = (row0 + 0.5 + clamp(y, 0.0, 1.0) * (n - 1.0)) / (2.0 * rows)
     return lut_u, lut_v
+
+
+def surface_lut_transmission_x(x, back):
+    """closure_mapping.h: surface_lut_transmission_x(x, back).
+
+        return back ? 1 - x : x
+    """
+    return select(back, 1.0 - x, x)
 
 
 def surface_glossy_light_visibility(V_: V, Nc: V, h: list, K, vis_amb) -> F:
@@ -351,8 +368,11 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         geo = b.new("ShaderNodeNewGeometry")
         tan = b.new("ShaderNodeTangent", direction_type="UV_MAP")  # active render UV map
         scale_ = b.float_socket(gin.outputs["Scale"])
-        uv = b.vector_socket(texco.outputs["UV"]) * scale_
-        uv = b.label(uv, "uv = UV * Scale")
+        # OSL: su = UV[0] Scale, sv = UV[1] Scale Aspect; Aspect = Lx / Ly of the repeat keeps a
+        # non-square repeat (warp and weft densities differ) at its physical proportions.
+        uvraw = b.vector_socket(texco.outputs["UV"])
+        uv = b.label(vec(uvraw.x * scale_, uvraw.y * scale_ * repeat_aspect(manifest), 0.0),
+                     "uv = UV * (Scale, Scale * Aspect)")
 
     # ---------------------------------------------------------------- atlas look-ups
     with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
@@ -406,6 +426,12 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         lu1, lv1 = surface_lut_uv(c_info.x, lx, ly, s1, K)
         uv0 = b.label(vec(lu0, lv0, 0.0), "LUT uv, slice s0")
         uv1 = b.label(vec(lu1, lv1, 0.0), "LUT uv, slice s1")
+        # A_ts: on a back face for the physical slab's tangent (surface_lut_transmission_x)
+        lxt = surface_lut_transmission_x(lx, back)
+        lut0, lvt0 = surface_lut_uv(c_info.x, lxt, ly, s0, K)
+        lut1, lvt1 = surface_lut_uv(c_info.x, lxt, ly, s1, K)
+        uvt0 = b.label(vec(lut0, lvt0, 0.0), "LUT uv (A_ts), slice s0")
+        uvt1 = b.label(vec(lut1, lvt1, 0.0), "LUT uv (A_ts), slice s1")
 
     with b.block("Albedo LUT (A_rs, A_ggx, A_ts), slices mixed (loom_cloth_surface.osl)"):
         looks = []
@@ -416,11 +442,19 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             b.link(uv_s, node.inputs["Vector"])
             looks.append(b.vector_socket(node.outputs["Color"]))
         lut = b.label(mix(looks[0], looks[1], sf), "lut")
+        looks_t = []
+        for uv_s, which in ((uvt0, "s0"), (uvt1, "s1")):
+            node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                         label=f"{LUT} (A_ts, {which})")
+            node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
+            b.link(uv_s, node.inputs["Vector"])
+            looks_t.append(b.vector_socket(node.outputs["Color"]))
+        lut_t = b.label(mix(looks_t[0], looks_t[1], sf), "lut_t")
 
     with b.block("closure_mapping.h: surface_closure_weights"):
         (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy) = surface_closure_weights(
             a_info, c_par.z, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
-            lut.x, lut.y, lut.z)
+            lut.x, lut.y, lut_t.z)
         for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
                        (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
                        (w_glossy, "w_glossy")):
@@ -428,8 +462,6 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
 
     with b.block("Closure normals in world space, glossy roughness (loom_cloth_surface.osl)"):
         np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
-        # OSL: np_slab_w = back ? mirrored n_p : n_p (transmission goes through the physical slab)
-        np_slab_w = b.label(normalize(T * np_.x + B * np_.y + N * (np_.z * zs)), "n_p slab world")
         nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
         t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
         a = b.label(sggx_fiber_roughness(c_par.x, K), "a")
@@ -448,9 +480,9 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         d_ns = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * w_diffuse_ns")
         b.link(w_dns, d_ns.inputs["Color"])
         b.link(0.0, d_ns.inputs["Roughness"])
-        t_np = b.new("ShaderNodeBsdfTranslucent", label="translucent(n_p slab) * w_translucent_np")
+        t_np = b.new("ShaderNodeBsdfTranslucent", label="translucent(n_p) * w_translucent_np")
         b.link(w_tnp, t_np.inputs["Color"])
-        b.link(np_slab_w, t_np.inputs["Normal"])
+        b.link(np_w, t_np.inputs["Normal"])
         t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
         b.link(w_tns, t_ns.inputs["Color"])
         gl = b.new("ShaderNodeBsdfGlossy", distribution="GGX",

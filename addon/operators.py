@@ -65,11 +65,17 @@ class LOOM_OT_bake_assign(Operator):
 
     bl_idname = "loom.bake_assign"
     bl_label = "Bake & Assign"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context):
-        return getattr(context, "material", None) is not None
+        # Only materials Loom manages are rebuilt: a user's own node tree is never replaced
+        # (use "New Loom Material" for a fresh one).
+        mat = getattr(context, "material", None)
+        if not material.is_loom_material(mat):
+            cls.poll_message_set("Not a Loom material: add one with New Loom Material")
+            return False
+        return True
 
     # -- blocking (scripts, background)
     def execute(self, context):
@@ -198,7 +204,13 @@ class LOOM_OT_assign_atlas(Operator):
 
     @classmethod
     def poll(cls, context):
-        return getattr(context, "material", None) is not None
+        # Only materials Loom manages are rebuilt: a user's own node tree is never replaced
+        # (use "New Loom Material" for a fresh one).
+        mat = getattr(context, "material", None)
+        if not material.is_loom_material(mat):
+            cls.poll_message_set("Not a Loom material: add one with New Loom Material")
+            return False
+        return True
 
     def invoke(self, context, event):
         if not self.directory and context.material.loom.atlas_dir:

@@ -4,12 +4,14 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <openssl/evp.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <optional>
 #include <cstdio>
 #include <fmt/format.h>
 #include <fstream>
@@ -107,6 +109,36 @@ uint64_t dir_bytes(const fs::path& d) {
   return n;
 }
 
+/// A directory that holds a manifest of a Loom atlas (any schema version).
+bool is_loom_atlas_dir(const fs::path& d) {
+  std::ifstream in(d / "manifest.json");
+  if (!in) return false;
+  try {
+    json m = json::parse(in);
+    return m.is_object() && m.contains("schema") && m["schema"].is_string() &&
+           m["schema"].get<std::string>().rfind("loom.atlas/", 0) == 0;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+/// Removes temporaries of bakes of `dir` whose process is gone (killed with SIGKILL, power loss):
+/// ".<name>.tmp-<pid>-<random>" beside it, <pid> no longer running.
+void sweep_stale_temporaries(const fs::path& dir) {
+  const std::string prefix = "." + dir.filename().string() + ".tmp-";
+  std::error_code ec;
+  for (auto& e : fs::directory_iterator(dir.parent_path(), ec)) {
+    std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (pid <= 0 || (::kill(pid_t(pid), 0) != 0 && errno == ESRCH)) fs::remove_all(e.path(), ec);
+  }
+}
+
+const char* const kSurfaceMaps[] = {"ply_frame",   "ply_normal",      "yarn_info",
+                                   "albedo_reflect", "albedo_transmit", "spec_params",
+                                   "horizon_0",   "horizon_1",       "albedo_lut"};
+
 bool plain_filename(const std::string& f) {
   return !f.empty() && f.find('/') == std::string::npos && f.find('\\') == std::string::npos &&
          f != "." && f != ".." && f.find('\0') == std::string::npos;
@@ -169,7 +201,7 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
       }
       fs::path f = dir / t[key].get<std::string>();
       std::string hkey = std::string(key) == "file" ? "sha256" : "node_sha256";
-      if (!fs::is_regular_file(f)) {
+      if (!fs::is_regular_file(fs::symlink_status(f))) {
         errors.push_back(fmt::format("textures.{}: {} is missing", name, f.string()));
         continue;
       }
@@ -191,6 +223,35 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           int(t["channels"].size()) != s.nchannels)
         errors.push_back(fmt::format("textures.{}: {} is {}x{}x{}, the manifest says otherwise",
                                      name, f.string(), s.width, s.height, s.nchannels));
+    }
+  }
+  // The contract the evaluators rely on: every map, four channels, one size for all maps, and
+  // the albedo LUT's layout.
+  const auto& tex = m["textures"];
+  std::optional<json> map_size;
+  for (const char* name : kSurfaceMaps) {
+    if (!tex.contains(name)) {
+      errors.push_back(fmt::format("textures.{}: missing from the manifest", name));
+      continue;
+    }
+    const json& t = tex[name];
+    if (!t.is_object() || !t.contains("size") || !t.contains("channels") ||
+        !t["channels"].is_array() || t["channels"].size() != 4) {
+      errors.push_back(fmt::format("textures.{}: expected 4 channels and a size", name));
+      continue;
+    }
+    if (std::string(name) == "albedo_lut") {
+      if (t["size"] != json::array({LOOM_ALBEDO_LUT_SIZE,
+                                    2 * LOOM_LUT_SLICES * LOOM_ALBEDO_LUT_SIZE}))
+        errors.push_back(fmt::format("textures.albedo_lut: size {} is not {} x {} (another "
+                                     "baker's layout: re-bake the atlas)",
+                                     t["size"].dump(), LOOM_ALBEDO_LUT_SIZE,
+                                     2 * LOOM_LUT_SLICES * LOOM_ALBEDO_LUT_SIZE));
+    } else if (!map_size) {
+      map_size = t["size"];
+    } else if (*map_size != t["size"]) {
+      errors.push_back(fmt::format("textures.{}: size {} differs from the other maps' {}", name,
+                                   t["size"].dump(), map_size->dump()));
     }
   }
   if (manifest_out) *manifest_out = m;
@@ -218,21 +279,26 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
 
   BakeResult res;
   res.dir = dir;
-  if (!opt.force && fs::exists(dir)) {
+  if (fs::exists(fs::symlink_status(dir))) {
     json m;
-    if (validate_atlas(dir, &m).empty() && m.value("bake_key", "") == bake_key) {
+    if (!opt.force && validate_atlas(dir, &m).empty() && m.value("bake_key", "") == bake_key) {
       res.reused = true;
       res.bytes = dir_bytes(dir);
       return res;
     }
-    if (!fs::is_directory(dir))
-      throw std::runtime_error(fmt::format("{} exists and is not a directory", dir.string()));
-    if (!fs::exists(dir / "manifest.json") && !fs::is_empty(dir))
-      throw std::runtime_error(fmt::format("{} exists, is not empty and is not an atlas; refusing "
-                                           "to replace it",
+    // Whatever --force says, only an empty directory or a Loom atlas (of any schema version) is
+    // ever replaced: the destination may be a user's folder.
+    if (fs::is_symlink(dir) || !fs::is_directory(dir))
+      throw std::runtime_error(fmt::format("{} exists and is not a directory; refusing to "
+                                           "replace it",
+                                           dir.string()));
+    if (!fs::is_empty(dir) && !is_loom_atlas_dir(dir))
+      throw std::runtime_error(fmt::format("{} exists, is not empty and is not a Loom atlas; "
+                                           "refusing to replace it",
                                            dir.string()));
   }
   fs::create_directories(dir.parent_path());
+  sweep_stale_temporaries(dir);
   std::random_device rd;
   fs::path tmp = dir.parent_path() /
                  fmt::format(".{}.tmp-{}-{:08x}", dir.filename().string(), getpid(), rd());

@@ -54,6 +54,9 @@ const char* kMaps[] = {"ply_frame",   "ply_normal",      "yarn_info", "albedo_re
 }  // namespace
 
 SurfacePoint sample_surface(const Atlas& a, float u, float v) {
+  // Wrap first (any finite u, v; also keeps the texel index arithmetic in range).
+  u -= std::floor(u);
+  v -= std::floor(v);
   float vals[8][4];
   for (int k = 0; k < 8; ++k) bilinear(a.map(kMaps[k]), u, v, vals[k]);
   SurfacePoint p = from_values(vals[0], vals[1], vals[2], vals[3], vals[4], vals[5], vals[6],
@@ -92,22 +95,20 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
   float vis_gl = front ? surface_glossy_light_visibility(V, Nc, hor) : 1.0f;
   float lx, ly, lz;
   surface_lut_coords(V, t, lx, ly, lz);
-  float lut[3];
+  float lut[3], lut_t[3];
   sample_albedo_lut(a.albedo_lut, p.kind, lx, ly, lz, lut);
+  sample_albedo_lut(a.albedo_lut, p.kind, surface_lut_transmission_x(lx, front ? 0 : 1), ly, lz,
+                    lut_t);
   float w_gap, w_glossy;
   color w_dnp, w_dns, w_tnp, w_tns;
   surface_closure_weights(p.gap, p.blend, p.k_rs, p.k_rd, p.k_ts, p.k_td, vis_v, vis_amb, vis_gl,
-                          lut[0], lut[1], lut[2], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy);
+                          lut[0], lut[1], lut_t[2], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy);
   const vec3 z(0, 0, 1);
   const vec3 Nv = cycles::ensure_valid_specular_reflection(z, V, Nc);
   // Node mode's Translucent BSDF raises its normal like a glossy one (Cycles svm/closure.h);
   // OSL's translucent() keeps it.
-  // Transmission goes through the physical slab (surface_bsdf.h): on the back, its ply normal is
-  // the stored one mirrored.
-  const vec3 np_slab = front ? np : vec3(np.x, np.y, -np.z);
-  const vec3 np_t = backend == Backend::Nodes
-                        ? cycles::ensure_valid_specular_reflection(z, V, np_slab)
-                        : np_slab;
+  const vec3 np_t =
+      backend == Backend::Nodes ? cycles::ensure_valid_specular_reflection(z, V, np) : np;
   vec3 sum = w_dnp * cycles::diffuse_eval(np, L, z) + w_dns * cycles::diffuse_eval(z, L, z) +
              w_tnp * cycles::translucent_eval(np_t, L, z) + w_tns * cycles::translucent_eval(z, L, z) +
              vec3(w_glossy * cycles::ggx_eval(Nv, t, rough, 1.0f, z, V, L));
@@ -134,7 +135,7 @@ MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, 
   int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
   std::vector<vec3> V;
   for (int k = 0; k < views; ++k) {
-    double z = 1.0 - (k + 0.5) / views * 0.97, r = std::sqrt(1 - z * z);
+    double z = (1.0 - 2.0 * (k + 0.5) / views) * 0.99, r = std::sqrt(1 - z * z);  // both sides
     double phi = k * 2.399963229728653;
     V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
   }

@@ -97,9 +97,17 @@ YarnGeom yarn_geom(const YarnSpec& y, double crossing_diameter, double repeat_le
   g.A = 0.25 * crossing_diameter;
   g.lateral_freq = g.P / (2.0 * M_PI * g.R_p);
   double ta = std::tan(y.ply_twist_deg * M_PI / 180.0);
-  // Stripes per repeat along the yarn, rounded to a whole number so that the map tiles.
+  if (g.P == 1) {  // one ply: no stripes, nothing periodic depends on the angle
+    g.stripes_per_repeat = 0;
+    g.k_a = 0;
+    g.tan_alpha = ta;
+    return g;
+  }
+  // Stripes per repeat along the yarn, rounded to a whole number so that the map tiles; a twisted
+  // yarn keeps at least one stripe (a small angle is adjusted up rather than lost).
   double raw = repeat_len * ta * g.lateral_freq;
   g.stripes_per_repeat = int(std::lround(raw));
+  if (g.stripes_per_repeat == 0 && ta > 0) g.stripes_per_repeat = 1;
   g.k_a = g.stripes_per_repeat / repeat_len;
   g.tan_alpha = g.k_a / g.lateral_freq;
   return g;
@@ -355,7 +363,7 @@ SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress
       ar[3] = float(spec_w * (1 - tau));
       at[3] = float(spec_w * tau);
       float* p = params.px(ix, iy);
-      p[0] = float(std::clamp(ys.roughness, 1e-3, 1.0));
+      p[0] = shading::sggx_fiber_roughness(float(ys.roughness));
       p[1] = float(spec.optical_thickness);
       p[2] = float(spec.diffuse_blend);
       p[3] = float(ys.ior);

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <fmt/format.h>
+#include <algorithm>
 #include <fstream>
 #include <numeric>
 #include <set>
@@ -258,7 +259,7 @@ void read_weave(const json& j, const std::string& path, WeaveSpec& w,
         if (!row.is_array() || row.size() != cols) { good = false; break; }
         std::vector<int> rr;
         for (auto& v : row) {
-          if (!v.is_number_integer() || (v.get<int>() != 0 && v.get<int>() != 1)) {
+          if (!v.is_number_integer() || (v.get<int64_t>() != 0 && v.get<int64_t>() != 1)) {
             good = false;
             break;
           }
@@ -319,8 +320,24 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     const json& o = sub(r, key, errors);
     for (auto& [k, v] : o.items()) (*target)[k] = v;
   }
-  read_yarn(warp, "$.warp", s.warp, errors);
-  read_yarn(weft, "$.weft", s.weft, errors);
+  // Report a field that came from "yarn" (and was not overridden) once, under $.yarn.
+  for (auto [key, target, y] : {std::tuple{"warp", &warp, &s.warp},
+                                std::tuple{"weft", &weft, &s.weft}}) {
+    std::vector<std::string> yerr;
+    const std::string path = std::string("$.") + key;
+    read_yarn(*target, path, *y, yerr);
+    const json* own = r.get(key);
+    for (auto& e : yerr) {
+      for (auto& [field, v] : yarn.items()) {
+        const std::string from = path + "." + field;
+        bool overridden = own && own->is_object() && own->contains(field);
+        if (!overridden && e.rfind(from, 0) == 0 &&
+            (e.size() == from.size() || e[from.size()] == ':' || e[from.size()] == '.'))
+          e = "$.yarn." + e.substr(path.size() + 1);
+      }
+      if (std::find(errors.begin(), errors.end(), e) == errors.end()) errors.push_back(e);
+    }
+  }
   {
     Reader d(sub(r, "density", errors), "$.density", errors);
     s.warp_per_cm = d.number("warp_per_cm", s.warp_per_cm, 1, 400, "yarns/cm");
@@ -388,8 +405,10 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
         "{} per side that fit in memory; choose a lower quality or a smaller repeat",
         to_string(s.quality), cols * texels_per_cell(s.quality), rows * texels_per_cell(s.quality),
         rows, cols, kMaxMapSide));
-  for (auto [name, y, per_cm] : {std::tuple{"warp", &s.warp, s.weft_per_cm},
-                                 std::tuple{"weft", &s.weft, s.warp_per_cm}}) {
+  // Warp yarns lie side by side at the warp density (1e4 / warp_per_cm um apart), weft yarns at
+  // the weft density.
+  for (auto [name, y, per_cm] : {std::tuple{"warp", &s.warp, s.warp_per_cm},
+                                 std::tuple{"weft", &s.weft, s.weft_per_cm}}) {
     // A yarn wider than 3x its spacing cannot lie flat next to its neighbours.
     double spacing = 1e4 / per_cm;
     if (y->yarn_diameter_um > 3.0 * spacing)

@@ -135,7 +135,28 @@ TEST(Atlas, RefusesToReplaceANonAtlasDirectory) {
   fs::create_directories(d);
   std::ofstream(d / "precious.txt") << "keep me";
   EXPECT_THROW(loom::bake_atlas(draft("plain"), d, {}), std::runtime_error);
+  loom::BakeOptions force;
+  force.force = true;  // --force re-bakes an atlas; it never deletes a user's folder
+  EXPECT_THROW(loom::bake_atlas(draft("plain"), d, force), std::runtime_error);
+  std::ofstream(d / "manifest.json") << R"({"name": "some web extension"})";
+  EXPECT_THROW(loom::bake_atlas(draft("plain"), d, force), std::runtime_error);
   EXPECT_TRUE(fs::exists(d / "precious.txt"));
+  // An atlas of another schema version is Loom's own: replaced.
+  auto old = copy_atlas("old_schema.atlas");
+  edit_manifest(old, [](json& m) { m["schema"] = "loom.atlas/0"; });
+  EXPECT_NO_THROW(loom::bake_atlas(draft("plain"), old, {}));
+  EXPECT_TRUE(loom::validate_atlas(old).empty());
+}
+
+TEST(Atlas, SweepsTemporariesOfDeadBakes) {
+  auto d = scratch("swept.atlas");
+  // A temporary left by a bake killed with SIGKILL: its PID does not exist any more.
+  fs::path stale = d.parent_path() / ".swept.atlas.tmp-999999999-deadbeef";
+  fs::create_directories(stale);
+  std::ofstream(stale / "ply_frame.exr") << "half written";
+  loom::bake_atlas(draft("plain"), d, {});
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(loom::validate_atlas(d).empty());
 }
 
 TEST(AtlasCli, InvalidSpecWritesNothingAndExitsNonZero) {

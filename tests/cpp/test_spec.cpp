@@ -46,12 +46,13 @@ TEST(Spec, OutOfRange) {
   d["density"]["warp_per_cm"] = 0.5;
   expect_one_error(d, {"$.density.warp_per_cm", "[1, 400]", "yarns/cm"});
   d = base();
-  d["yarn"]["plies"] = 9;
-  auto r = parse_spec(d);  // "yarn" feeds warp and weft: one message each
-  ASSERT_EQ(r.errors.size(), 2u);
-  EXPECT_NE(r.errors[0].find("$.warp.plies"), std::string::npos);
+  d["yarn"]["plies"] = 9;  // "yarn" feeds warp and weft: reported once, where it was written
+  expect_one_error(d, {"$.yarn.plies", "[1, 8]"});
+  d["weft"] = {{"plies", 12}};  // the weft overrides it: its own message
+  auto r = parse_spec(d);
+  ASSERT_EQ(r.errors.size(), 2u) << ::testing::PrintToString(r.errors);
+  EXPECT_NE(r.errors[0].find("$.yarn.plies"), std::string::npos);
   EXPECT_NE(r.errors[1].find("$.weft.plies"), std::string::npos);
-  EXPECT_NE(r.errors[0].find("[1, 8]"), std::string::npos);
 }
 
 TEST(Spec, NonFiniteNumbers) {
@@ -90,6 +91,13 @@ TEST(Spec, Contradictions) {
   d = base();
   d["weave"] = {{"pattern", "custom"}, {"matrix", {{1, 0, 2}}}};
   expect_one_error(d, {"$.weave.matrix", "0 (weft on top) or 1"});
+  auto big = parse_spec_text(R"({"weave": {"pattern": "custom", "matrix": [[4294967297, 0], [0, 1]]}})");
+  ASSERT_EQ(big.errors.size(), 1u);  // 2^32 + 1 must not wrap to 1
+  EXPECT_NE(big.errors[0].find("$.weave.matrix"), std::string::npos);
+  // Yarns wider than three spacings at their own density (warp: warp_per_cm).
+  d = base();
+  d["density"] = {{"warp_per_cm", 150}, {"weft_per_cm", 10}};  // warp spacing 66.7 um
+  expect_one_error(d, {"$.warp.yarn_diameter_um", "at 150 yarns/cm", "[10, 200.0]"});
 }
 
 TEST(Spec, ResolutionThatDoesNotFit) {

@@ -40,8 +40,8 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p, shading::v
 std::array<float, 3> eval_bsdf_average(const Atlas& a, shading::vec3 wi, shading::vec3 wo,
                                        Evaluator e, Backend backend = Backend::Nodes);
 
-/// The closure-mapping error: for texels spread over the repeat and views V over the upper
-/// hemisphere, the relative L1 distance over the sphere of light directions,
+/// The closure-mapping error: for texels spread over the repeat and views V over the whole sphere
+/// (front and back of the cloth), the relative L1 distance over the sphere of light directions,
 ///   e(x, V) = int |f_closures - f_model| |cos| dL / int f_model |cos| dL   (green channel),
 /// and the same for the directional albedo alone (energy error). Mean and worst over (x, V).
 struct MappingError {

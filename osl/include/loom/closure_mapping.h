@@ -14,6 +14,9 @@
 //                                                                           A_rs / A_ggx
 //   Eq. 4, fiber transmission    translucent(n_s)                         (1-c) k_ts A_ts
 //
+// On a back face (the cloth seen from below) the view frame's z points to the viewer, n_p and t
+// are used as stored (the back mirrors the front), A_ts is read for the physical slab's tangent
+// (surface_lut_transmission_x) and the visibilities are 1.
 // V(V) is the view-side visibility; the model's light-side visibility V(i) cannot vary inside a
 // closure, so it is replaced by its mean over the lobe: the cosine-weighted sky visibility V_amb
 // (horizon_ambient_visibility) for the diffuse lobes, the visibility of the glossy lobe's centre
@@ -95,6 +98,15 @@ LOOM_FN void surface_lut_uv(float kind, float x, float y, float slice, LOOM_OUT(
     row0 += rows;
   lut_u = (0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / n;
   lut_v = (row0 + 0.5 + clamp(y, 0.0, 1.0) * (n - 1.0)) / (2.0 * rows);
+}
+
+/// LUT x coordinate for the transmission albedo A_ts. On a back face the fiber transmission goes
+/// through the physical slab, whose tangent is the stored one mirrored through the tangent plane
+/// (surface_bsdf.h); in LUT coordinates that mirror keeps the slice and maps x to 1 - x.
+LOOM_FN float surface_lut_transmission_x(float x, int back) {
+  if (back)
+    return 1.0 - x;
+  return x;
 }
 
 /// The two slices around slice coordinate z and the weight of the upper one.

@@ -14,10 +14,12 @@
 //     SpongeCake (the microflakes reflect, they do not refract); h is undefined for o = -i, where
 //     f^{t,s} is set to 0 (a set of measure zero).
 //   * The cloth is two-sided. Seen from below (o_z < 0), i and o are mirrored through the tangent
-//     plane. Reflection off the back takes the back as the mirror image of the front: the atlas's
-//     ply frame (t, n_p) is used as stored, facing the viewer. Transmission goes through the one
-//     physical slab: its ply frame is mirrored too, so that the specular transmission stays
-//     reciprocal across the two sides. Visibility is only baked for the front and is 1 on the back.
+//     plane and the back is taken as the mirror image of the front: the atlas's ply normal n_p is
+//     used as stored, facing the viewer, for reflection (Eq. 3) and diffuse transmission (Eq. 6,
+//     whose ply-normal term then sees light leaving towards the viewer, as on the front). The
+//     fiber specular transmission (Eq. 4) goes through the one physical slab: its fiber tangent
+//     is mirrored, so that it stays reciprocal across the two sides. Visibility is only baked for
+//     the front and is 1 on the back.
 //   * k^{r,s}, k^{t,s} are scalar (fibers are dielectrics: their specular reflection is white);
 //     k^{r,d}, k^{t,d} are colours.
 #ifndef LOOM_SURFACE_BSDF_H
@@ -82,10 +84,8 @@ LOOM_FN color surface_bsdf_eval(vector i_in, vector o_in, vector t_in, vector np
     color fd = k_rd * surface_diffuse(dot(i, np), i[2], w);
     return (open * vis) * (fd + color(fs));
   }
-  if (front == 0.0) {  // through the slab from its back: its physical frame, mirrored
+  if (front == 0.0)  // the fibers of the physical slab, seen from its back
     t[2] = -t[2];
-    np[2] = -np[2];
-  }
   float fs = k_ts * surface_specular_transmit(i, o, t, a, T);
   color fd = k_td * surface_diffuse(-dot(i, np), -i[2], w);
   return open * (fd + color(fs));
