@@ -9,7 +9,7 @@ import sys
 
 import bpy
 
-from . import api, operators, preferences, properties, ui
+from . import api, operators, osl_paths, preferences, properties, ui
 
 _classes = (*preferences.classes, *properties.classes, *operators.classes, *ui.classes)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(_classes)
@@ -23,6 +23,7 @@ _ALIASES = {"loom": sys.modules[__name__], "loom.api": api}
 def register():
     _register_classes()
     properties.register_props()
+    osl_paths.register()
     for name, module in _ALIASES.items():
         if __name__ != "loom":
             sys.modules.setdefault(name, module)
@@ -32,6 +33,7 @@ def unregister():
     for name, module in _ALIASES.items():
         if __name__ != "loom" and sys.modules.get(name) is module:
             del sys.modules[name]
+    osl_paths.unregister()
     properties.unregister_props()
     _unregister_classes()
     api._last.clear()

@@ -14,7 +14,7 @@ import os
 
 import bpy
 
-from . import node_mode, osl_source
+from . import node_mode, osl_paths, osl_source
 from .bakery import read_manifest
 
 OSL_TEXT_NAME = osl_source.SURFACE_SHADER
@@ -225,9 +225,11 @@ def _build_osl(mat, atlas_dir, manifest, scale):
     if not ok or "BSDF" not in script.outputs:
         nt.nodes.remove(script)  # never leave a Script node that cannot run
         raise OSLBuildError("; ".join(messages) or "the shader did not compile")
-    for name, tex in manifest["textures"].items():
-        if name in script.inputs:
-            script.inputs[name].default_value = os.path.join(atlas_dir, tex["file"])
+    files = {name: tex["file"] for name, tex in manifest["textures"].items()
+             if name in script.inputs}
+    for name, file in files.items():
+        script.inputs[name].default_value = os.path.join(atlas_dir, file)
+    osl_paths.remember(script, atlas_dir, files)  # re-resolved before every render
     texco = nt.nodes.new("ShaderNodeTexCoord")
     texco.location = (-300, 100)
     tan = nt.nodes.new("ShaderNodeTangent")

@@ -434,22 +434,18 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         uvt1 = b.label(vec(lut1, lvt1, 0.0), "LUT uv (A_ts), slice s1")
 
     with b.block("Albedo LUT (A_rs, A_ggx, A_ts), slices mixed (loom_cloth_surface.osl)"):
-        looks = []
-        for uv_s, which in ((uv0, "s0"), (uv1, "s1")):
-            node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
-                         label=f"{LUT} ({which})")
-            node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
-            b.link(uv_s, node.inputs["Vector"])
-            looks.append(b.vector_socket(node.outputs["Color"]))
-        lut = b.label(mix(looks[0], looks[1], sf), "lut")
-        looks_t = []
-        for uv_s, which in ((uvt0, "s0"), (uvt1, "s1")):
-            node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
-                         label=f"{LUT} (A_ts, {which})")
-            node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
-            b.link(uv_s, node.inputs["Vector"])
-            looks_t.append(b.vector_socket(node.outputs["Color"]))
-        lut_t = b.label(mix(looks_t[0], looks_t[1], sf), "lut_t")
+        def lut_lookup(uv_a, uv_b, what):  # two slices, mixed by sf
+            looks = []
+            for uv_s, which in ((uv_a, "s0"), (uv_b, "s1")):
+                node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                             label=f"{LUT} ({what}, {which})")
+                node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
+                b.link(uv_s, node.inputs["Vector"])
+                looks.append(b.vector_socket(node.outputs["Color"]))
+            return mix(looks[0], looks[1], sf)
+
+        lut = b.label(lut_lookup(uv0, uv1, "A_rs, A_ggx"), "lut")
+        lut_t = b.label(lut_lookup(uvt0, uvt1, "A_ts"), "lut_t")
 
     with b.block("closure_mapping.h: surface_closure_weights"):
         (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy) = surface_closure_weights(

@@ -60,6 +60,30 @@ def _redraw_properties(context):
                 area.tag_redraw()
 
 
+def _assign_and_report(op, context, mat, obj, atlas_dir) -> set:
+    """Build ``mat`` from the atlas and report what was done (mode and why, UV warnings)."""
+    try:
+        res = apply_atlas(context, mat, obj, atlas_dir)
+    except (bakery.LoomBakeError, OSError, ValueError, KeyError) as exc:
+        op.report({"ERROR"}, f"Loom: cannot build the material from {atlas_dir}: {exc}")
+        return {"CANCELLED"}
+    context.window_manager.loom_bake_status = f"{res.mode.lower()} mode: {res.reason}"
+    _report_result(op, res)
+    warning = material.uv_warning(obj)
+    if warning:
+        op.report({"WARNING"}, f"Loom: {warning}")
+    return {"FINISHED"}
+
+
+def _poll_loom_material(cls, context) -> bool:
+    """Only materials Loom manages are rebuilt: a user's own node tree is never replaced (use
+    "New Loom Material" for a fresh one)."""
+    if not material.is_loom_material(getattr(context, "material", None)):
+        cls.poll_message_set("Not a Loom material: add one with New Loom Material")
+        return False
+    return True
+
+
 class LOOM_OT_bake_assign(Operator):
     """Bake the material's fabric with loom-bake (cached) and build the material from the atlas"""
 
@@ -69,13 +93,7 @@ class LOOM_OT_bake_assign(Operator):
 
     @classmethod
     def poll(cls, context):
-        # Only materials Loom manages are rebuilt: a user's own node tree is never replaced
-        # (use "New Loom Material" for a fresh one).
-        mat = getattr(context, "material", None)
-        if not material.is_loom_material(mat):
-            cls.poll_message_set("Not a Loom material: add one with New Loom Material")
-            return False
-        return True
+        return _poll_loom_material(cls, context)
 
     # -- blocking (scripts, background)
     def execute(self, context):
@@ -89,7 +107,7 @@ class LOOM_OT_bake_assign(Operator):
         if status.state != "done":
             self.report({"ERROR"}, f"Loom: {status.message}")
             return {"CANCELLED"}
-        return self._assign(context, mat, context.object, status.atlas_dir)
+        return _assign_and_report(self, context, mat, context.object, status.atlas_dir)
 
     # -- modal (UI)
     def invoke(self, context, event):
@@ -148,7 +166,8 @@ class LOOM_OT_bake_assign(Operator):
             self.report({"WARNING"}, f"Loom: baked {status.atlas_dir}, but material "
                                      f"{self._mat_name} no longer exists")
             return {"CANCELLED"}
-        return self._assign(context, mat, bpy.data.objects.get(self._obj_name), status.atlas_dir)
+        return _assign_and_report(self, context, mat, bpy.data.objects.get(self._obj_name),
+                                  status.atlas_dir)
 
     def cancel(self, context):
         # Blender ends the modal handler (file load, window closed): kill the process too.
@@ -166,19 +185,6 @@ class LOOM_OT_bake_assign(Operator):
         if context.workspace is not None:
             context.workspace.status_text_set(None)
         _redraw_properties(context)
-
-    def _assign(self, context, mat, obj, atlas_dir):
-        try:
-            res = apply_atlas(context, mat, obj, atlas_dir)
-        except (bakery.LoomBakeError, OSError, ValueError, KeyError) as exc:
-            self.report({"ERROR"}, f"Loom: cannot build the material from {atlas_dir}: {exc}")
-            return {"CANCELLED"}
-        context.window_manager.loom_bake_status = f"{res.mode.lower()} mode: {res.reason}"
-        _report_result(self, res)
-        warning = material.uv_warning(obj)
-        if warning:
-            self.report({"WARNING"}, f"Loom: {warning}")
-        return {"FINISHED"}
 
 
 class LOOM_OT_bake_cancel(Operator):
@@ -204,13 +210,7 @@ class LOOM_OT_assign_atlas(Operator):
 
     @classmethod
     def poll(cls, context):
-        # Only materials Loom manages are rebuilt: a user's own node tree is never replaced
-        # (use "New Loom Material" for a fresh one).
-        mat = getattr(context, "material", None)
-        if not material.is_loom_material(mat):
-            cls.poll_message_set("Not a Loom material: add one with New Loom Material")
-            return False
-        return True
+        return _poll_loom_material(cls, context)
 
     def invoke(self, context, event):
         if not self.directory and context.material.loom.atlas_dir:
@@ -223,16 +223,7 @@ class LOOM_OT_assign_atlas(Operator):
         if not os.path.isfile(os.path.join(atlas, "manifest.json")):
             self.report({"ERROR"}, f"Loom: {atlas} is not an atlas (no manifest.json)")
             return {"CANCELLED"}
-        try:
-            res = apply_atlas(context, context.material, context.object, atlas)
-        except (bakery.LoomBakeError, OSError, ValueError, KeyError) as exc:
-            self.report({"ERROR"}, f"Loom: {exc}")
-            return {"CANCELLED"}
-        _report_result(self, res)
-        warning = material.uv_warning(context.object)
-        if warning:
-            self.report({"WARNING"}, f"Loom: {warning}")
-        return {"FINISHED"}
+        return _assign_and_report(self, context, context.material, context.object, atlas)
 
 
 class LOOM_OT_material_new(Operator):
