@@ -73,6 +73,9 @@ SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,
                                Evaluator e, Backend backend) {
   SurfacePoint p = p_in;
+  if (!(std::isfinite(wi.x) && std::isfinite(wi.y) && std::isfinite(wi.z) &&
+        std::isfinite(wo.x) && std::isfinite(wo.y) && std::isfinite(wo.z)))
+    return {0, 0, 0};  // like the model: a non-finite direction scatters nothing
   float hor[LOOM_HORIZON_DIRS];
   for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) hor[k] = p.horizon[k];
   float rough = sggx_fiber_roughness(p.roughness);

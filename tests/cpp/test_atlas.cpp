@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <sstream>
 
@@ -274,4 +275,37 @@ TEST(AtlasCli, ConcurrentBakesOfOneSpecLeaveOneValidAtlas) {
   for (auto& e : fs::directory_iterator(d.parent_path()))
     leftovers += e.path().filename().string().find("concurrent.atlas.tmp") != std::string::npos;
   EXPECT_EQ(leftovers, 0);
+}
+
+TEST(Evaluators, RandomSweepNeverNaNNorInf) {
+  // A million (wi, wo) pairs per evaluator over random texels: uniform directions, plus grazing
+  // (|cos| down to 1e-6 and exactly 0), mirrored, opposite and non-finite ones.
+  auto a = loom::load_atlas(plain_atlas());
+  using loom::shading::vec3;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> U(-1, 1);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<loom::SurfacePoint> pts;
+  for (int k = 0; k < 256; ++k) pts.push_back(loom::sample_surface(a, U(rng), U(rng)));
+  auto dir = [&](int kind) {
+    vec3 d = loom::shading::normalize(vec3(U(rng), U(rng), U(rng)));
+    switch (kind) {
+      case 0: return d;
+      case 1: return loom::shading::normalize(vec3(d.x, d.y, 1e-6f * (d.z < 0 ? -1.0f : 1.0f)));
+      case 2: return loom::shading::normalize(vec3(d.x, d.y, 0.0f));
+      case 3: return vec3(0, 0, 1);
+      case 4: return vec3(nan, d.y, d.z);
+      default: return vec3(d.x, inf, d.z);
+    }
+  };
+  int bad = 0;
+  for (auto e : {loom::Evaluator::Model, loom::Evaluator::Closures})
+    for (int n = 0; n < 1000000; ++n) {
+      int ki = (n % 97 == 0) ? 4 + (n / 97) % 2 : (n % 7 == 0 ? 1 + (n / 7) % 3 : 0);
+      vec3 wi = dir(ki), wo = n % 11 == 0 ? -wi : dir(n % 13 == 0 ? 1 + n % 3 : 0);
+      auto f = loom::eval_bsdf(a, pts[n & 255], wi, wo, e);
+      for (float c : f) bad += !(std::isfinite(c) && c >= 0.0f);
+    }
+  EXPECT_EQ(bad, 0);
 }

@@ -63,6 +63,10 @@ LOOM_FN float surface_diffuse(float cos_i_np, float cos_i, float w) {
 LOOM_FN color surface_bsdf_eval(vector i_in, vector o_in, vector t_in, vector np_in, float a,
                                 float T, float w, float k_rs, color k_rd, float k_ts,
                                 color k_td, float c, float hor[LOOM_HORIZON_DIRS]) {
+  // Non-finite directions (a NaN from upstream) scatter nothing rather than poison the pixel.
+  if (!(isfinite(i_in[0]) && isfinite(i_in[1]) && isfinite(i_in[2]) && isfinite(o_in[0]) &&
+        isfinite(o_in[1]) && isfinite(o_in[2])))
+    return color(0.0);
   vector i = i_in;
   vector o = o_in;
   vector t = t_in;
