@@ -1,0 +1,74 @@
+// Procedural plies and fibers (Luan, Zhao, Bala 2017, section 3.2 and 4.5; after Zhao et al.
+// 2016): the regular fibers of a ply as helices (Eq. 1) whose radius migrates (Eq. 2), with
+// radii drawn from the cross-sectional density (Eq. 3) by rejection sampling; multi-ply yarns
+// twist their plies about the yarn centre. One implementation, for the ray-wave simulation and
+// the fiber tier alike.
+//
+// Consistent seeding (section 5.3): every random number of a fiber is a pure function of
+// (yarn, ply, fiber, k), so a fiber is the same whether it is generated alone or with all others,
+// in any order, on any thread. Choice where the text differs: the paper indexes a van der Corput
+// sequence in blocks of N per fiber; strided radical inverses share their low digits (every
+// first sample of a block of 64 is >= 0.5 in base 2), which breaks rejection sampling (tested:
+// a Kolmogorov-Smirnov distance of 0.41 against Eq. 3). Loom uses a counter-based generator
+// instead: SplitMix64 of the key, the same consistency without the correlation.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "loom/spec.h"
+
+namespace loom {
+
+/// Parameters of Eq. 1-3 for the fibers of one ply, and of the ply twist (lengths in um).
+struct PlyParams {
+  double ply_radius = 85;       ///< R_ply: fibers are at R * R_ply, R in [0, 1]
+  double fiber_radius = 7.5;
+  double pitch = 2000;          ///< a of Eq. 1 (fiber twist pitch)
+  double r_min = 0.1, r_max = 1.0;  ///< Eq. 2 migration range
+  double s = 2.0;               ///< Eq. 2: migration cycles per twist cycle
+  double epsilon = 0.1, beta = 0.5;  ///< Eq. 3 density
+  int fibers = 40;
+  // The ply about the yarn centre (section 4.5).
+  int plies = 2;
+  double ply_centre_radius = 65;  ///< distance of the ply centres from the yarn centre
+  double ply_pitch = 1000;        ///< z length of one ply revolution
+  double twist_sign = 1;          ///< +1 Z twist, -1 S twist (direction of the revolution)
+};
+
+/// Defaults derived from a yarn spec: R_ply from the ply diameter, a from the fiber twist pitch,
+/// ply centre radius = yarn radius - ply radius, ply pitch from the ply twist angle
+/// (tan alpha = 2 pi R_c / pitch), fibers from fibers_per_ply.
+PlyParams ply_params_from_yarn(const YarnSpec& y);
+
+/// Eq. 3, unnormalised: p(R) = (1 - 2 eps) ((e - e^R) / (e - 1))^beta + eps, R in [0, 1].
+double fiber_radius_density(double R, double epsilon, double beta);
+
+/// The consistently seeded uniform number k in [0, 1) of fiber (yarn, ply, fiber).
+double fiber_random(uint32_t yarn, uint32_t ply, uint32_t fiber, uint32_t k);
+
+/// One regular fiber: R_j (normalised), theta_j, theta_j^(0).
+struct Fiber {
+  double R = 0, theta = 0, theta0 = 0;
+};
+
+inline constexpr uint32_t kRejectionTries = 64;
+
+/// The fiber `fiber` of ply `ply` of yarn `yarn`, consistently seeded.
+Fiber make_fiber(const PlyParams& p, uint32_t yarn, uint32_t ply, uint32_t fiber);
+/// All fibers of one ply.
+std::vector<Fiber> make_ply_fibers(const PlyParams& p, uint32_t yarn, uint32_t ply);
+
+struct Vec3d {
+  double x = 0, y = 0, z = 0;
+};
+
+/// Eq. 2: the migrating radius R_j(z) in um (scaled by the ply radius).
+double fiber_radius_at(const PlyParams& p, const Fiber& f, double z);
+/// Eq. 1 with Eq. 2: the fiber centre in ply space at height z.
+Vec3d fiber_in_ply(const PlyParams& p, const Fiber& f, double z);
+/// Centre of ply `ply` in yarn space at height z (plies evenly spaced, twisted about the axis).
+Vec3d ply_centre(const PlyParams& p, uint32_t ply, double z);
+/// The fiber centre in yarn space at height z (ply space placed at the ply centre).
+Vec3d fiber_in_yarn(const PlyParams& p, uint32_t ply, const Fiber& f, double z);
+
+}  // namespace loom

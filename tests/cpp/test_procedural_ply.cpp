@@ -1,0 +1,97 @@
+// Procedural plies (Luan et al. 2017, Eq. 1-3, section 4.5, 5.3) against independent computations.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "loom/procedural_ply.h"
+
+namespace {
+loom::PlyParams params() {
+  loom::YarnSpec y;
+  y.plies = 3;
+  y.fibers_per_ply = 1000;
+  return loom::ply_params_from_yarn(y);
+}
+}  // namespace
+
+TEST(ProceduralPly, RadiiFollowTheCrossSectionDensity) {
+  // Eq. 3 by rejection: the empirical CDF of R over many fibers matches the CDF of p(R)
+  // integrated numerically (Kolmogorov-Smirnov distance).
+  auto p = params();
+  for (auto [eps, beta] : {std::pair{0.1, 0.5}, std::pair{0.02, 2.0}, std::pair{0.3, 1.0}}) {
+    p.epsilon = eps, p.beta = beta;
+    std::vector<double> R;
+    for (uint32_t yarn = 0; yarn < 4; ++yarn)
+      for (uint32_t ply = 0; ply < 3; ++ply)
+        for (auto& f : loom::make_ply_fibers(p, yarn, ply)) R.push_back(f.R);
+    std::sort(R.begin(), R.end());
+    const int n = 4000;
+    std::vector<double> cdf(n + 1, 0.0);
+    for (int i = 0; i < n; ++i)
+      cdf[i + 1] = cdf[i] + loom::fiber_radius_density((i + 0.5) / n, eps, beta) / n;
+    double ks = 0;
+    for (size_t k = 0; k < R.size(); ++k) {
+      double model = cdf[std::min(n, int(R[k] * n))] / cdf[n];
+      ks = std::max(ks, std::fabs(model - (k + 0.5) / R.size()));
+    }
+    EXPECT_LT(ks, 0.02) << "eps " << eps << " beta " << beta << " (" << R.size() << " fibers)";
+  }
+}
+
+TEST(ProceduralPly, HelixAndMigrationFollowEq1And2) {
+  auto p = params();
+  auto f = loom::make_fiber(p, 3, 1, 17);
+  double lo = 1e9, hi = 0;
+  for (int k = 0; k < 2000; ++k) {
+    double z = k * p.pitch / 500.0;
+    auto q = loom::fiber_in_ply(p, f, z);
+    double r = std::hypot(q.x, q.y);
+    EXPECT_NEAR(r, loom::fiber_radius_at(p, f, z), 1e-9);
+    lo = std::min(lo, r), hi = std::max(hi, r);
+    // Eq. 1: the azimuth advances by 2 pi per pitch a.
+    double ang = std::atan2(q.y, q.x);
+    double want = std::remainder(f.theta + 2 * M_PI * z / p.pitch, 2 * M_PI);
+    EXPECT_NEAR(std::remainder(ang - want, 2 * M_PI), 0.0, 1e-9);
+  }
+  // Eq. 2: R_j(z) sweeps [r_min R_j, r_max R_j] R_ply.
+  EXPECT_NEAR(lo, p.r_min * f.R * p.ply_radius, 1e-3 * p.ply_radius);
+  EXPECT_NEAR(hi, p.r_max * f.R * p.ply_radius, 1e-3 * p.ply_radius);
+}
+
+TEST(ProceduralPly, ConsistentSeedingIndependentOfOrder) {
+  auto p = params();
+  auto all = loom::make_ply_fibers(p, 5, 2);
+  for (int j : {999, 0, 500, 17}) {
+    auto f = loom::make_fiber(p, 5, 2, uint32_t(j));
+    EXPECT_EQ(f.R, all[size_t(j)].R);
+    EXPECT_EQ(f.theta, all[size_t(j)].theta);
+    EXPECT_EQ(f.theta0, all[size_t(j)].theta0);
+  }
+  // Different plies and yarns get different fibers.
+  EXPECT_NE(loom::make_fiber(p, 5, 1, 3).theta, loom::make_fiber(p, 5, 2, 3).theta);
+  EXPECT_NE(loom::make_fiber(p, 4, 2, 3).theta, loom::make_fiber(p, 5, 2, 3).theta);
+}
+
+TEST(ProceduralPly, PliesTwistAboutTheYarnCentre) {
+  loom::YarnSpec y;
+  y.plies = 3;
+  y.yarn_diameter_um = 300;
+  y.ply_diameter_um = 150;
+  y.ply_twist_deg = 30;
+  y.twist = "Z";
+  auto p = loom::ply_params_from_yarn(y);
+  EXPECT_NEAR(p.ply_centre_radius, 75, 1e-9);
+  // Helix angle of the ply centre line: tan(alpha) = 2 pi R_c / pitch.
+  EXPECT_NEAR(std::atan(2 * M_PI * p.ply_centre_radius / p.ply_pitch), 30 * M_PI / 180, 1e-9);
+  for (uint32_t k = 0; k < 3; ++k) {
+    auto c0 = loom::ply_centre(p, k, 0), c1 = loom::ply_centre(p, k, p.ply_pitch / 4);
+    EXPECT_NEAR(std::hypot(c0.x, c0.y), 75, 1e-9);
+    // A quarter pitch later a Z twist has turned a quarter turn counter-clockwise.
+    double turn = std::remainder(std::atan2(c1.y, c1.x) - std::atan2(c0.y, c0.x), 2 * M_PI);
+    EXPECT_NEAR(turn, M_PI / 2, 1e-9);
+  }
+  // Plies are evenly spaced.
+  auto a = loom::ply_centre(p, 0, 10), b = loom::ply_centre(p, 1, 10);
+  EXPECT_NEAR(std::hypot(a.x - b.x, a.y - b.y), 2 * 75 * std::sin(M_PI / 3), 1e-9);
+}
