@@ -1,5 +1,6 @@
 #include "loom/procedural_ply.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace loom {
@@ -83,6 +84,74 @@ Vec3d ply_centre(const PlyParams& p, uint32_t ply, double z) {
 Vec3d fiber_in_yarn(const PlyParams& p, uint32_t ply, const Fiber& f, double z) {
   Vec3d c = ply_centre(p, ply, z), q = fiber_in_ply(p, f, z);
   return {c.x + q.x, c.y + q.y, z};
+}
+
+// ---- Flyaways ----
+
+int64_t migration_cycle(const PlyParams& p, const Fiber& f, double z) {
+  double phase = p.s * z / p.pitch + f.theta0 / (2 * M_PI);
+  return int64_t(std::floor(phase));
+}
+
+double loop_probability(const PlyParams& p) {
+  double cycles_per_um = p.s / p.pitch;
+  return std::clamp(p.loop_density / (std::max(p.fibers, 1) * cycles_per_um), 0.0, 1.0);
+}
+
+bool is_loop_cycle(const PlyParams& p, uint32_t yarn, uint32_t ply, uint32_t fiber,
+                   int64_t cycle) {
+  // Random numbers 1000 + cycle (mod 2^31) of the fiber: independent of its Eq. 1-3 numbers.
+  uint32_t k = 1000u + uint32_t(uint64_t(cycle) & 0x7fffffffu);
+  return fiber_random(yarn, ply, fiber, k) < loop_probability(p);
+}
+
+double fiber_radius_with_loops(const PlyParams& p, uint32_t yarn, uint32_t ply, uint32_t fiber,
+                               const Fiber& f, double z) {
+  if (p.loop_density <= 0 || !is_loop_cycle(p, yarn, ply, fiber, migration_cycle(p, f, z)))
+    return fiber_radius_at(p, f, z);
+  PlyParams q = p;
+  q.r_max = p.loop_r_max;
+  return fiber_radius_at(q, f, z);
+}
+
+std::vector<Hair> make_ply_hairs(const PlyParams& p, uint32_t yarn, uint32_t ply, double length) {
+  std::vector<Hair> out;
+  if (p.hair_density <= 0 || length <= 0) return out;
+  // Hairs draw from the ply's own stream: fiber index kHairStream, numbers 0, 1, 2, ...
+  constexpr uint32_t kHairStream = 0xFFFFF;  // beyond any regular fiber index
+  uint32_t k = 0;
+  auto rnd = [&] { return fiber_random(yarn, ply, kHairStream, k++); };
+  // Poisson count by inversion (the mean is modest: density x length).
+  double mean = p.hair_density * length, L = std::exp(-std::min(mean, 700.0)), prod = rnd();
+  int n = 0;
+  if (mean > 500) {  // normal approximation for long plies
+    double u1 = std::max(rnd(), 1e-300), u2 = rnd();
+    n = std::max(0, int(std::lround(mean + std::sqrt(mean) * std::sqrt(-2 * std::log(u1)) *
+                                               std::cos(2 * M_PI * u2))));
+  } else {
+    while (prod > L) {
+      ++n;
+      prod *= rnd();
+    }
+  }
+  out.reserve(size_t(n));
+  for (int j = 0; j < n; ++j) {
+    Hair h;
+    h.z1 = length * rnd();
+    h.z2 = h.z1 + p.hair_length_min + (p.hair_length_max - p.hair_length_min) * rnd();
+    h.R1 = p.ply_radius * (p.r_min + (1 - p.r_min) * rnd());
+    h.R2 = p.ply_radius * (1 + (p.hair_r_max - 1) * rnd());
+    h.theta1 = 2 * M_PI * rnd();
+    h.theta2 = h.theta1 + p.hair_max_turn * (2 * rnd() - 1);
+    out.push_back(h);
+  }
+  return out;
+}
+
+Vec3d hair_in_ply(const Hair& h, double z) {
+  double t = h.z2 > h.z1 ? std::clamp((z - h.z1) / (h.z2 - h.z1), 0.0, 1.0) : 0.0;
+  double R = h.R1 + (h.R2 - h.R1) * t, th = h.theta1 + (h.theta2 - h.theta1) * t;  // Eq. 4
+  return {R * std::cos(th), R * std::sin(th), z};
 }
 
 }  // namespace loom

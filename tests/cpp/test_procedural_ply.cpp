@@ -95,3 +95,63 @@ TEST(ProceduralPly, PliesTwistAboutTheYarnCentre) {
   auto a = loom::ply_centre(p, 0, 10), b = loom::ply_centre(p, 1, 10);
   EXPECT_NEAR(std::hypot(a.x - b.x, a.y - b.y), 2 * 75 * std::sin(M_PI / 3), 1e-9);
 }
+
+TEST(ProceduralPly, LoopCountFollowsItsDensity) {
+  // Loops per um of ply: expected rho_loop; counted over many fibers' migration cycles.
+  auto p = params();
+  p.fibers = 200;
+  p.loop_density = 0.002;  // 2 loops per mm
+  const double length = 20000;  // 2 cm of ply
+  long loops = 0, cycles = 0;
+  for (uint32_t yarn = 0; yarn < 5; ++yarn)
+    for (uint32_t j = 0; j < uint32_t(p.fibers); ++j) {
+      auto f = loom::make_fiber(p, yarn, 0, j);
+      int64_t c0 = loom::migration_cycle(p, f, 0), c1 = loom::migration_cycle(p, f, length);
+      for (int64_t c = c0; c < c1; ++c) {
+        ++cycles;
+        loops += loom::is_loop_cycle(p, yarn, 0, j, c);
+      }
+    }
+  double expected = p.loop_density * length * 5;  // five plies of this length
+  // Binomial: mean n q, sd sqrt(n q (1 - q)); allow 4 sd.
+  double q = loom::loop_probability(p), sd = std::sqrt(cycles * q * (1 - q));
+  EXPECT_NEAR(double(loops), expected, 4 * sd + 0.02 * expected);
+  EXPECT_NEAR(cycles * q, expected, 0.02 * expected);
+  // Inside a loop cycle the fiber reaches out to loop_r_max R_j.
+  p.loop_density = 1e9;  // every cycle a loop
+  auto f = loom::make_fiber(p, 0, 0, 3);
+  double hi = 0;
+  for (int k = 0; k < 4000; ++k)
+    hi = std::max(hi, loom::fiber_radius_with_loops(p, 0, 0, 3, f, k * p.pitch / 1000));
+  EXPECT_NEAR(hi, p.loop_r_max * f.R * p.ply_radius, 1e-3 * p.ply_radius);
+}
+
+TEST(ProceduralPly, HairCountFollowsItsDensityAndEq4) {
+  auto p = params();
+  p.hair_density = 0.001;  // 1 hair per mm
+  double total = 0;
+  const int plies = 400;
+  const double length = 10000;
+  for (uint32_t k = 0; k < uint32_t(plies); ++k) {
+    auto hairs = loom::make_ply_hairs(p, k, 0, length);
+    total += double(hairs.size());
+    for (auto& h : hairs) {
+      EXPECT_GE(h.z1, 0.0);
+      EXPECT_LT(h.z1, length);
+      EXPECT_LE(h.R1, p.ply_radius + 1e-9);  // starts inside the ply
+      EXPECT_GE(h.R2, p.ply_radius - 1e-9);  // ends outside it
+      auto a = loom::hair_in_ply(h, h.z1), b = loom::hair_in_ply(h, h.z2);
+      EXPECT_NEAR(std::hypot(a.x, a.y), h.R1, 1e-9);
+      EXPECT_NEAR(std::hypot(b.x, b.y), h.R2, 1e-9);
+      auto m = loom::hair_in_ply(h, 0.5 * (h.z1 + h.z2));  // Eq. 4: linear in R and theta
+      EXPECT_NEAR(std::hypot(m.x, m.y), 0.5 * (h.R1 + h.R2), 1e-9);
+    }
+  }
+  // Poisson: mean rho h per ply; over 400 plies the total is within 4 sd of 400 rho h.
+  double mean = p.hair_density * length * plies;
+  EXPECT_NEAR(total, mean, 4 * std::sqrt(mean));
+  // Consistent: the same ply gives the same hairs.
+  auto h1 = loom::make_ply_hairs(p, 7, 1, length), h2 = loom::make_ply_hairs(p, 7, 1, length);
+  ASSERT_EQ(h1.size(), h2.size());
+  for (size_t k = 0; k < h1.size(); ++k) EXPECT_EQ(h1[k].z1, h2[k].z1);
+}

@@ -28,6 +28,16 @@ struct PlyParams {
   double s = 2.0;               ///< Eq. 2: migration cycles per twist cycle
   double epsilon = 0.1, beta = 0.5;  ///< Eq. 3 density
   int fibers = 40;
+  // Flyaways (section 3.2, after Zhao et al. 2016). Choices where the text is silent: hair fibers
+  // start inside the ply (R in [r_min, 1]) and end outside it (R in [1, hair_r_max]), turn by at
+  // most hair_max_turn radians, and are hair_length_min..max long; loops scale a whole migration
+  // cycle's radius to loop_r_max.
+  double loop_density = 0.0;   ///< loops per um of ply length (rho_loop)
+  double loop_r_max = 1.6;     ///< R_max^loop, in units of R_ply
+  double hair_density = 0.0;   ///< hair fibers per um of ply length (rho_hair)
+  double hair_r_max = 2.0;     ///< outer end of a hair, in units of R_ply
+  double hair_length_min = 200, hair_length_max = 1500;  ///< um along z
+  double hair_max_turn = 0.5;  ///< radians
   // The ply about the yarn centre (section 4.5).
   int plies = 2;
   double ply_centre_radius = 65;  ///< distance of the ply centres from the yarn centre
@@ -70,5 +80,30 @@ Vec3d fiber_in_ply(const PlyParams& p, const Fiber& f, double z);
 Vec3d ply_centre(const PlyParams& p, uint32_t ply, double z);
 /// The fiber centre in yarn space at height z (ply space placed at the ply centre).
 Vec3d fiber_in_yarn(const PlyParams& p, uint32_t ply, const Fiber& f, double z);
+
+// ---- Flyaways ----
+
+/// Migration cycle of a fiber at height z (Eq. 2's cosine phase / 2 pi, floored).
+int64_t migration_cycle(const PlyParams& p, const Fiber& f, double z);
+/// Probability that one migration cycle is mutated into a loop: rho_loop / (fibers * cycles per
+/// um), i.e. m_loop / (m k) of section 4.4.1 with m_loop = rho_loop h, k = s h / a cycles.
+double loop_probability(const PlyParams& p);
+/// Whether cycle `cycle` of fiber (yarn, ply, fiber) is a loop (consistently seeded).
+bool is_loop_cycle(const PlyParams& p, uint32_t yarn, uint32_t ply, uint32_t fiber,
+                   int64_t cycle);
+/// Eq. 2 with loops: R_j(z) in um, r_max replaced by loop_r_max within a mutated cycle.
+double fiber_radius_with_loops(const PlyParams& p, uint32_t yarn, uint32_t ply, uint32_t fiber,
+                               const Fiber& f, double z);
+
+/// A hair-type flyaway (Eq. 4): an arc from (z1, R1, theta1) to (z2, R2, theta2), R in um.
+struct Hair {
+  double z1 = 0, z2 = 0, R1 = 0, R2 = 0, theta1 = 0, theta2 = 0;
+};
+/// The hairs of ply `ply` of yarn `yarn` over z in [0, length): their count is Poisson with mean
+/// hair_density * length (consistently seeded), each hair from its own random numbers.
+std::vector<Hair> make_ply_hairs(const PlyParams& p, uint32_t yarn, uint32_t ply,
+                                 double length);
+/// Eq. 4: the hair's centre in ply space at z in [z1, z2] (R and theta interpolated linearly).
+Vec3d hair_in_ply(const Hair& h, double z);
 
 }  // namespace loom
