@@ -17,6 +17,13 @@ PlyParams ply_params_from_yarn(const YarnSpec& y) {
   // tan(alpha) = 2 pi R_c / pitch; an untwisted or single-ply yarn has no ply revolution.
   p.ply_pitch = (ta > 1e-9 && p.ply_centre_radius > 0) ? 2 * M_PI * p.ply_centre_radius / ta : 0;
   p.twist_sign = y.twist == "Z" ? 1.0 : -1.0;
+  p.r_min = y.migration_min;
+  p.r_max = y.migration_max;
+  p.s = y.migration_period;
+  p.epsilon = y.density_epsilon;
+  p.beta = y.density_beta;
+  p.loop_density = y.loop_flyaways_per_mm * 1e-3;  // per um
+  p.hair_density = y.hair_flyaways_per_mm * 1e-3;
   return p;
 }
 

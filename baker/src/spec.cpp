@@ -184,6 +184,13 @@ void read_yarn(const json& j, const std::string& path, YarnSpec& y,
   y.roughness = r.number("roughness", y.roughness, 0.001, 1.0, "");
   y.specular = r.number("specular", y.specular, 0.0, 1.0, "");
   y.transmission = r.number("transmission", y.transmission, 0.0, 1.0, "");
+  y.migration_min = r.number("migration_min", y.migration_min, 0.0, 1.0, "");
+  y.migration_max = r.number("migration_max", y.migration_max, 0.0, 1.0, "");
+  y.migration_period = r.number("migration_period", y.migration_period, 0.1, 10.0, "");
+  y.density_epsilon = r.number("density_epsilon", y.density_epsilon, 0.0, 0.5, "");
+  y.density_beta = r.number("density_beta", y.density_beta, 0.01, 10.0, "");
+  y.loop_flyaways_per_mm = r.number("loop_flyaways_per_mm", y.loop_flyaways_per_mm, 0, 100, "/mm");
+  y.hair_flyaways_per_mm = r.number("hair_flyaways_per_mm", y.hair_flyaways_per_mm, 0, 100, "/mm");
   if (const json* c = r.get("color")) {
     Reader cr(*c, r.at("color"), errors);
     if (!c->is_object()) {
@@ -220,6 +227,10 @@ void read_yarn(const json& j, const std::string& path, YarnSpec& y,
     errors.push_back(fmt::format(
         "{}.ply_diameter_um: {} um is larger than yarn_diameter_um {} um; allowed range [5, {}] um",
         path, y.ply_diameter_um, y.yarn_diameter_um, y.yarn_diameter_um));
+  if (y.migration_min > y.migration_max)
+    errors.push_back(fmt::format("{}.migration_min: {} is larger than migration_max {}; allowed "
+                                 "range [0, {}]",
+                                 path, y.migration_min, y.migration_max, y.migration_max));
   if (y.fiber_diameter_um > y.ply_diameter_um)
     errors.push_back(fmt::format(
         "{}.fiber_diameter_um: {} um is larger than ply_diameter_um {} um; allowed range [1, {}] "
@@ -467,7 +478,14 @@ json canonical_spec(const FabricSpec& s) {
                 {"color", c},
                 {"roughness", y.roughness},
                 {"specular", y.specular},
-                {"transmission", y.transmission}};
+                {"transmission", y.transmission},
+                {"migration_min", y.migration_min},
+                {"migration_max", y.migration_max},
+                {"migration_period", y.migration_period},
+                {"density_epsilon", y.density_epsilon},
+                {"density_beta", y.density_beta},
+                {"loop_flyaways_per_mm", y.loop_flyaways_per_mm},
+                {"hair_flyaways_per_mm", y.hair_flyaways_per_mm}};
   };
   json weave = {{"pattern", s.weave.pattern}};
   if (s.weave.pattern == "twill") {

@@ -155,3 +155,20 @@ TEST(ProceduralPly, HairCountFollowsItsDensityAndEq4) {
   ASSERT_EQ(h1.size(), h2.size());
   for (size_t k = 0; k < h1.size(); ++k) EXPECT_EQ(h1[k].z1, h2[k].z1);
 }
+
+TEST(ProceduralPly, ParametersComeFromTheSpec) {
+  auto r = loom::parse_spec(nlohmann::json{
+      {"yarn", {{"migration_min", 0.2}, {"migration_max", 0.9}, {"migration_period", 3.0},
+                {"density_epsilon", 0.05}, {"density_beta", 1.5}, {"loop_flyaways_per_mm", 4.0},
+                {"hair_flyaways_per_mm", 7.0}, {"fiber_twist_pitch_um", 1500}}}});
+  ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
+  auto p = loom::ply_params_from_yarn(r.spec.warp);
+  EXPECT_EQ(p.r_min, 0.2);
+  EXPECT_EQ(p.r_max, 0.9);
+  EXPECT_EQ(p.s, 3.0);
+  EXPECT_EQ(p.epsilon, 0.05);
+  EXPECT_EQ(p.beta, 1.5);
+  EXPECT_DOUBLE_EQ(p.loop_density, 4e-3);
+  EXPECT_DOUBLE_EQ(p.hair_density, 7e-3);
+  EXPECT_EQ(p.pitch, 1500);
+}

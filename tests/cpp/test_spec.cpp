@@ -146,3 +146,16 @@ TEST(Spec, CanonicalFormIsOrderIndependentAndComplete) {
   ASSERT_TRUE(back.ok()) << ::testing::PrintToString(back.errors);
   EXPECT_EQ(loom::canonical_spec(back.spec), c);
 }
+
+TEST(Spec, ProceduralFiberFields) {
+  json d = base();
+  d["warp"] = {{"migration_min", 0.8}, {"migration_max", 0.5}};
+  expect_one_error(d, {"$.warp.migration_min", "larger than migration_max", "[0, 0.5]"});
+  d["warp"] = {{"density_beta", 0.0}};
+  expect_one_error(d, {"$.warp.density_beta", "[0.01, 10]"});
+  d["warp"] = {{"hair_flyaways_per_mm", 2.5}, {"migration_period", 1.5}};
+  auto r = parse_spec(d);
+  ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
+  EXPECT_EQ(r.spec.warp.hair_flyaways_per_mm, 2.5);
+  EXPECT_EQ(loom::canonical_spec(r.spec)["warp"]["migration_period"], 1.5);
+}

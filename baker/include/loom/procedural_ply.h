@@ -45,9 +45,10 @@ struct PlyParams {
   double twist_sign = 1;          ///< +1 Z twist, -1 S twist (direction of the revolution)
 };
 
-/// Defaults derived from a yarn spec: R_ply from the ply diameter, a from the fiber twist pitch,
-/// ply centre radius = yarn radius - ply radius, ply pitch from the ply twist angle
-/// (tan alpha = 2 pi R_c / pitch), fibers from fibers_per_ply.
+/// Parameters of a yarn spec: R_ply from the ply diameter, a from the fiber twist pitch, ply
+/// centre radius = yarn radius - ply radius, ply pitch from the ply twist angle
+/// (tan alpha = 2 pi R_c / pitch), fibers from fibers_per_ply, Eq. 2-3 and flyaway densities from
+/// the yarn's migration_*, density_* and *_flyaways_per_mm fields.
 PlyParams ply_params_from_yarn(const YarnSpec& y);
 
 /// Eq. 3, unnormalised: p(R) = (1 - 2 eps) ((e - e^R) / (e - 1))^beta + eps, R in [0, 1].

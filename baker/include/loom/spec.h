@@ -37,6 +37,14 @@ struct YarnSpec {
   double roughness = 0.25;             ///< SGGX fiber roughness, [0.001, 1]
   double specular = 0.3;               ///< fraction of light scattered specularly, [0, 1]
   double transmission = 0.25;          ///< fraction of it transmitted, [0, 1]
+  // Procedural fibers (Luan et al. 2017, Eq. 2-4), used by the ray-wave and fiber tiers.
+  double migration_min = 0.1;          ///< r_min of Eq. 2, [0, 1]
+  double migration_max = 1.0;          ///< r_max of Eq. 2, [migration_min, 1]
+  double migration_period = 2.0;       ///< s of Eq. 2: migration cycles per twist, [0.1, 10]
+  double density_epsilon = 0.1;        ///< epsilon of Eq. 3, [0, 0.5]
+  double density_beta = 0.5;           ///< beta of Eq. 3, [0.01, 10]
+  double loop_flyaways_per_mm = 0.0;   ///< rho_loop, loops per mm of ply, [0, 100]
+  double hair_flyaways_per_mm = 0.0;   ///< rho_hair, hairs per mm of ply, [0, 100]
 };
 
 struct WeaveSpec {
