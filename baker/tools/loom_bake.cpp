@@ -9,6 +9,8 @@
 
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
+#include "loom/ply_scattering.h"
+#include "loom/shading.h"
 #include "loom/spec.h"
 
 using nlohmann::json;
@@ -114,6 +116,35 @@ int main(int argc, char** argv) {
   mapping->add_option("--views", mapping_views, "view directions over the hemisphere")
       ->check(CLI::Range(1, 1024));
 
+  auto* asg = eval->add_subcommand(
+      "asg", "one ASG lobe (Eq. S.1, S.2) at a direction, and its integral over the sphere");
+  std::string asg_lobe_s, asg_v_s;
+  asg->add_option("--lobe", asg_lobe_s, "THETA_Z,PHI_Z,PHI_XY,MU1,MU2,C (angles in radians)")
+      ->required();
+  asg->add_option("--v", asg_v_s, "X,Y,Z direction in ply space (normalised)")->required();
+
+  auto* plysim = eval->add_subcommand(
+      "plysim", "simulate one (theta_i, h) slice of ply scattering and print energy fractions");
+  std::string plysim_spec, plysim_yarn = "warp", plysim_quality;
+  double plysim_theta = 0, plysim_h = 0, plysim_sigma = 0;
+  int plysim_rays = 0;
+  uint64_t plysim_seed = 1;
+  plysim->add_option("--spec", plysim_spec, "fabric spec file or preset name")->required();
+  plysim->add_option("--yarn", plysim_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
+  plysim->add_option("--theta-i", plysim_theta, "incident angle from the ply's normal plane, "
+                                                "degrees [-90, 90]")
+      ->required()
+      ->check(CLI::Range(-90.0, 90.0));
+  plysim->add_option("--h", plysim_h, "beam offset across the ply, [-1, 1]")
+      ->required()
+      ->check(CLI::Range(-1.0, 1.0));
+  plysim->add_option("--sigma", plysim_sigma, "fiber absorption, 1/mm, [0, 1e6]")
+      ->check(CLI::Range(0.0, 1e6));
+  plysim->add_option("--rays", plysim_rays, "rays (default: the quality preset's per slice)")
+      ->check(CLI::Range(1, 100000000));
+  plysim->add_option("--quality", plysim_quality, "draft | preview | final | reference");
+  plysim->add_option("--seed", plysim_seed, "random seed");
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -217,6 +248,57 @@ int main(int argc, char** argv) {
                         {"worst_energy_error", e.worst_energy},
                         {"texels", e.texels},
                         {"pairs", e.views}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*asg) {
+      std::vector<double> q, v;
+      if (!parse_vec(asg_lobe_s, 6, q)) {
+        std::cerr << "error: --lobe: expected THETA_Z,PHI_Z,PHI_XY,MU1,MU2,C (six finite numbers)\n";
+        return 2;
+      }
+      if (q[3] < 0 || q[4] < 0 || q[5] < 0) {
+        std::cerr << "error: --lobe: MU1, MU2 and C must be >= 0\n";
+        return 2;
+      }
+      if (!parse_vec(asg_v_s, 3, v)) {
+        std::cerr << "error: --v: expected X,Y,Z (three finite numbers, not all zero)\n";
+        return 2;
+      }
+      namespace sh = loom::shading;
+      sh::vec3 dir = sh::normalize(sh::vec3(float(v[0]), float(v[1]), float(v[2])));
+      if (sh::length(dir) == 0) {
+        std::cerr << "error: --v: the direction must not be the zero vector\n";
+        return 2;
+      }
+      float val = sh::asg_eval(float(q[0]), float(q[1]), float(q[2]), float(q[3]), float(q[4]),
+                               float(q[5]), dir);
+      float integral = sh::asg_integral(float(q[3]), float(q[4]), float(q[5]));
+      std::cout << json{{"value", val}, {"integral", integral}}.dump() << std::endl;
+      return 0;
+    }
+    if (*plysim) {
+      auto res = loom::load_spec(plysim_spec, plysim_quality);
+      if (!res.ok()) return report_spec_errors(plysim_spec, res.errors);
+      const loom::YarnSpec& y = plysim_yarn == "weft" ? res.spec.weft : res.spec.warp;
+      auto p = loom::ply_params_from_yarn(y);
+      auto st = loom::ply_sim_settings(res.spec.quality);
+      if (plysim_rays > 0) st.rays_per_slice = plysim_rays;
+      st.sigmas = {0.0};
+      if (plysim_sigma > 0) st.sigmas.push_back(plysim_sigma);
+      st.seed = plysim_seed;
+      loom::PlyGeometry g(p, loom::make_ply_fibers(p, 0, 0));
+      auto sl = loom::simulate_ply_slice(g, y.ior, st, plysim_theta * M_PI / 180, plysim_h, 0);
+      const auto& e = sl.energy.back();
+      std::cout << json{{"reflected", e.reflected},
+                        {"higher_order", e.higher_order},
+                        {"absorbed", e.absorbed},
+                        {"unscattered", e.unscattered},
+                        {"truncated", e.truncated},
+                        {"rays", st.rays_per_slice},
+                        {"sigma_per_mm", plysim_sigma},
+                        {"yarn", plysim_yarn}}
                        .dump()
                 << std::endl;
       return 0;

@@ -9,10 +9,11 @@
 #                     <blender>/<version>/scripts/addons_core/cycles/shader; when unset, a few
 #                     usual Blender install locations are searched.
 #
-# Two checks per shader in osl/*.osl:
+# Two checks per shader in osl/*.osl, and one per shared header:
 #   1. the file as is, with -I osl/include (an external Script node);
 #   2. the text the add-on puts in an internal text datablock: its includes flattened by
-#      addon/osl_source.py, compiled *without* osl/include, proving the .blend is self-contained.
+#      addon/osl_source.py, compiled *without* osl/include, proving the .blend is self-contained;
+#   3. each osl/include/loom/*.h alone in an empty shader.
 set -euo pipefail
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -65,6 +66,17 @@ sys.stdout.write(osl_source.flatten(sys.argv[1]) + "\n")' "$src" >"$tmp/$name.fl
         else
             echo "FAIL oslc $name.osl (flattened)"; status=1
         fi
+    fi
+done
+# 3. Every shared header on its own (headers no shader includes yet are type-checked too).
+for hdr in "$repo"/osl/include/loom/*.h; do
+    hname=$(basename "$hdr" .h)
+    printf '#include "stdcycles.h"\n#include "loom/%s.h"\nshader loom_header_%s() {}\n' \
+        "$hname" "$hname" >"$tmp/header_$hname.osl"
+    if "$oslc" -q "-I$repo/osl/include" "${inc[@]}" -o "$tmp/header_$hname.oso" "$tmp/header_$hname.osl"; then
+        echo "PASS oslc loom/$hname.h"
+    else
+        echo "FAIL oslc loom/$hname.h"; status=1
     fi
 done
 exit $status

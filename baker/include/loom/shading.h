@@ -11,4 +11,5 @@ namespace loom::shading {
 #include "../../../osl/include/loom/visibility.h"
 #include "../../../osl/include/loom/surface_bsdf.h"
 #include "../../../osl/include/loom/closure_mapping.h"
+#include "../../../osl/include/loom/asg.h"
 }  // namespace loom::shading

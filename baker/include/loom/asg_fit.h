@@ -1,0 +1,87 @@
+// ASG block fitting of simulated ply scattering (ray-wave supplement section 1, Eq. S.3-S.12).
+//
+// f_0^high over the (theta_i^m, h^n) grid (M = 2M' + 1, N = 2N' + 1 samples) is split into
+// M' x N' fitting blocks of 3 x 3 slices (S.3). Each slice of a block is a sum of L lobes (S.4)
+// whose parameters are bilinear in the four corner parameter sets (S.5); those are optimised
+// jointly with Ceres (Levenberg-Marquardt, analytic derivatives from asg_eval_grad). Evaluation
+// between samples interpolates the corner sets bilinearly (S.6-S.8). For sigma_k > 0 the lobes
+// stay fixed and per-block scale-downs s_{l,k} are fitted (S.9), s_{l,0} = 1, interpolated
+// linearly in sigma (S.10-S.12).
+//
+// Choices where the text is silent:
+//  * Shared corners. The supplement fits every block on its own, so a corner slice shared by
+//    two blocks gets two different lobe sets and the lobes jump at block borders. Loom stores one
+//    parameter set per corner node (theta_i^{2m}, h^{2n}) and fits the blocks in raster order:
+//    a block optimises its corners jointly, holding fixed the corners an earlier block already
+//    fitted. The representation is therefore continuous across block borders, lobe l is the same
+//    lobe everywhere (correspondence for free), and each block is still the joint 3 x 3 fit of S.4.
+//  * Initialisation: the first corner greedily (peak of the remaining data, half-maximum widths,
+//    then a single-slice fit); every later corner starts from its fitted neighbour.
+//  * Angles: theta_z is bounded to [-pi/2, pi/2]; phi_z and phi_xy are left unbounded, so that a
+//    lobe that crosses phi = +-pi keeps a continuous (unwrapped) value and S.7 interpolates it
+//    along the short way; asg_eval is 2 pi periodic in both.
+//  * Objective: solid-angle weighted least squares, sum_bins Omega_b (model - data)^2, on the
+//    simulation's (theta_o, phi_o) bins (pooled 2 x 2 when the grid is finer than 32 x 64).
+//    Fit error: normalised RMSE = sqrt(sum Omega (model - data)^2 / sum Omega data^2) per block
+//    and over all slices.
+//  * Scale-downs: bounded least squares 0 <= s_{l,k} <= s_{l,k-1} (monotone in sigma by
+//    construction; the data are, since every path is weighted by exp(-sigma l)), solved by
+//    projected coordinate descent on the L x L normal equations. Beyond sigma_{K-1} the last
+//    scale-downs are kept (the data there are close to zero anyway).
+//  * f_refl: the same block scheme with its own (small) lobe count and no absorption levels.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "loom/ply_scattering.h"
+
+namespace loom {
+
+/// The six parameters q of one lobe (Eq. S.1, S.2).
+struct AsgLobe {
+  double theta_z = 0, phi_z = 0, phi_xy = 0, mu1 = 1, mu2 = 1, c = 0;
+};
+
+struct AsgFitSettings {
+  int lobes = 3;               ///< L
+  int max_iterations = 40;     ///< Levenberg-Marquardt iterations per block
+  double mu_max = 5000;        ///< upper bound on mu1, mu2
+  int threads = 0;             ///< Ceres threads (0: hardware concurrency)
+};
+
+/// Lobe count and iterations of a quality preset, for f_high (refl = false) or f_refl.
+AsgFitSettings asg_fit_settings(Quality q, bool refl);
+
+/// Fitted lobe tables over the (theta_i, h) grid and absorption levels.
+struct AsgTable {
+  int lobes = 0;
+  std::vector<double> theta_i, h, sigmas;  ///< the simulation's grids (radians, -, 1/mm)
+  /// Corner nodes: (M' + 1) x (N' + 1), each `lobes` lobes: nodes[(i * (N' + 1) + j) * L + l].
+  std::vector<AsgLobe> nodes;
+  /// Scale-downs per block and level: scale[((bm * N' + bn) * K + k) * L + l], k = 0 is 1.
+  std::vector<double> scale;
+  std::vector<double> block_nrmse;  ///< per block, f_0
+  double nrmse = 0;                 ///< over all slices, f_0
+  std::vector<double> nrmse_per_sigma;  ///< over all slices, per absorption level
+  int node_rows() const { return int(theta_i.size() / 2) + 1; }
+  int node_cols() const { return int(h.size() / 2) + 1; }
+  const AsgLobe& node(int i, int j, int l) const {
+    return nodes[(size_t(i) * size_t(node_cols()) + size_t(j)) * size_t(lobes) + size_t(l)];
+  }
+};
+
+/// Fit f_high (all absorption levels) of a simulation.
+AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s);
+/// Fit f_refl of a simulation (one level, no scale-downs).
+AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s);
+
+/// The lobes at (theta_i, h, sigma) by S.6, S.7, S.10, S.11 (scale folded into c); queries
+/// outside the grids are clamped to it.
+std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma);
+/// S.8 / S.12: the fitted scattering density at ply-space direction wo.
+double asg_table_eval(const AsgTable& t, double theta_i, double h, double sigma, const Vec3d& wo);
+/// Sum of S.1 over lobes.
+double asg_mixture_eval(const std::vector<AsgLobe>& lobes, const Vec3d& wo);
+
+}  // namespace loom

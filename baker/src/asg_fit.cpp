@@ -1,0 +1,501 @@
+#include "loom/asg_fit.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "loom/shading.h"
+
+namespace loom {
+namespace {
+
+namespace sh = shading;
+constexpr int kQ = 6;  // parameters per lobe
+
+/// The outgoing directions the fit uses (the simulation's bins, pooled when fine), with their
+/// solid angles, and the data of every slice and level on them.
+struct FitGrid {
+  int rows = 0, cols = 0;
+  std::vector<sh::vec3> dir;
+  std::vector<double> weight;  // solid angle
+  // values[(slice * K + k) * bins + b]
+  std::vector<double> values;
+  int K = 1;
+  size_t bins() const { return dir.size(); }
+  const double* slice(size_t s, int k) const { return &values[(s * size_t(K) + size_t(k)) * bins()]; }
+};
+
+FitGrid make_grid(const PlySimResult& sim, bool refl) {
+  const PlySimSettings& st = sim.settings;
+  const int pool = st.theta_o_count > 32 ? 2 : 1;
+  FitGrid g;
+  g.rows = st.theta_o_count / pool;
+  g.cols = st.phi_o_count / pool;
+  g.K = refl ? 1 : int(st.sigmas.size());
+  for (int r = 0; r < g.rows; ++r)
+    for (int c = 0; c < g.cols; ++c) {
+      double w = 0;
+      Vec3d d{0, 0, 0};
+      for (int a = 0; a < pool; ++a)
+        for (int b = 0; b < pool; ++b) {
+          int t = r * pool + a, p = c * pool + b;
+          double om = ply_sim_bin_solid_angle(st, t);
+          Vec3d v = ply_sim_bin_direction(st, t, p);
+          w += om;
+          d = {d.x + om * v.x, d.y + om * v.y, d.z + om * v.z};
+        }
+      g.dir.push_back(sh::normalize(sh::vec3(float(d.x), float(d.y), float(d.z))));
+      g.weight.push_back(w);
+    }
+  const size_t fine = size_t(st.theta_o_count) * size_t(st.phi_o_count);
+  g.values.assign(sim.slices.size() * size_t(g.K) * g.bins(), 0.0);
+  for (size_t s = 0; s < sim.slices.size(); ++s)
+    for (int k = 0; k < g.K; ++k) {
+      const float* src = refl ? sim.slices[s].refl.data() : &sim.slices[s].high[size_t(k) * fine];
+      double* dst = &g.values[(s * size_t(g.K) + size_t(k)) * g.bins()];
+      for (int r = 0; r < g.rows; ++r)
+        for (int c = 0; c < g.cols; ++c) {
+          double sum = 0, w = 0;
+          for (int a = 0; a < pool; ++a)
+            for (int b = 0; b < pool; ++b) {
+              int t = r * pool + a, p = c * pool + b;
+              double om = ply_sim_bin_solid_angle(st, t);
+              sum += om * src[size_t(t) * size_t(st.phi_o_count) + size_t(p)];
+              w += om;
+            }
+          dst[size_t(r) * size_t(g.cols) + size_t(c)] = sum / w;
+        }
+    }
+  return g;
+}
+
+AsgLobe lobe_from(const double* q) { return {q[0], q[1], q[2], q[3], q[4], q[5]}; }
+
+/// One slice of a block (S.4 with S.5): residuals sqrt(Omega_b) (sum_l G_l(q_l) - f_b), with
+/// q_l = sum_c w_c q_{c,l} over the corner parameter blocks that carry weight.
+class SliceCost final : public ceres::CostFunction {
+ public:
+  SliceCost(const FitGrid& g, const double* data, std::vector<double> w, int lobes)
+      : g_(g), data_(data), w_(std::move(w)), L_(lobes) {
+    set_num_residuals(int(g.bins()));
+    for (size_t c = 0; c < w_.size(); ++c) mutable_parameter_block_sizes()->push_back(kQ * L_);
+  }
+  bool Evaluate(double const* const* params, double* residuals, double** jac) const override {
+    std::vector<double> q(size_t(kQ * L_), 0.0);
+    for (size_t c = 0; c < w_.size(); ++c)
+      for (int i = 0; i < kQ * L_; ++i) q[size_t(i)] += w_[c] * params[c][i];
+    const int P = kQ * L_;
+    std::vector<double> grad(static_cast<size_t>(P));
+    for (size_t b = 0; b < g_.bins(); ++b) {
+      const double sw = std::sqrt(g_.weight[b]);
+      double sum = 0;
+      for (int l = 0; l < L_; ++l) {
+        const double* ql = &q[size_t(kQ * l)];
+        sh::vec3 ga, gs;
+        sum += sh::asg_eval_grad(float(ql[0]), float(ql[1]), float(ql[2]), float(ql[3]),
+                                 float(ql[4]), float(ql[5]), g_.dir[b], ga, gs);
+        double* gl = &grad[size_t(kQ * l)];
+        gl[0] = ga.x, gl[1] = ga.y, gl[2] = ga.z, gl[3] = gs.x, gl[4] = gs.y, gl[5] = gs.z;
+      }
+      residuals[b] = sw * (sum - data_[b]);
+      if (!jac) continue;
+      for (size_t c = 0; c < w_.size(); ++c) {
+        if (!jac[c]) continue;
+        double* row = jac[c] + b * size_t(P);
+        for (int i = 0; i < P; ++i) row[i] = sw * w_[c] * grad[size_t(i)];
+      }
+    }
+    return true;
+  }
+
+ private:
+  const FitGrid& g_;
+  const double* data_;
+  std::vector<double> w_;
+  int L_;
+};
+
+void set_bounds(ceres::Problem& pb, double* q, int L, double mu_max, double c_max) {
+  for (int l = 0; l < L; ++l) {
+    pb.SetParameterLowerBound(q, kQ * l + 0, -M_PI / 2);
+    pb.SetParameterUpperBound(q, kQ * l + 0, M_PI / 2);
+    for (int i : {3, 4}) {
+      pb.SetParameterLowerBound(q, kQ * l + i, 0.0);
+      pb.SetParameterUpperBound(q, kQ * l + i, mu_max);
+    }
+    pb.SetParameterLowerBound(q, kQ * l + 5, 0.0);
+    pb.SetParameterUpperBound(q, kQ * l + 5, c_max);
+  }
+}
+
+void clamp_to_bounds(double* q, int L, double mu_max, double c_max) {
+  for (int l = 0; l < L; ++l) {
+    double* ql = q + kQ * l;
+    ql[0] = std::clamp(ql[0], -M_PI / 2 + 1e-9, M_PI / 2 - 1e-9);
+    ql[3] = std::clamp(ql[3], 0.0, mu_max);
+    ql[4] = std::clamp(ql[4], 0.0, mu_max);
+    ql[5] = std::clamp(ql[5], 0.0, c_max);
+  }
+}
+
+ceres::Solver::Options solver_options(const AsgFitSettings& s) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  o.max_num_iterations = s.max_iterations;
+  o.num_threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  o.function_tolerance = 1e-7;
+  return o;
+}
+
+/// Greedy start for L lobes on one slice: the peak of what remains, half-maximum widths along
+/// the azimuth (x0 of S.2) and the elevation (y0), subtract, repeat.
+void greedy_init(const FitGrid& g, const double* f, int L, double mu_max, double* q) {
+  std::vector<double> r(f, f + g.bins());
+  const double dth = M_PI / g.rows, dph = 2 * M_PI / g.cols;
+  for (int l = 0; l < L; ++l) {
+    double* ql = q + kQ * l;
+    size_t best = size_t(std::max_element(r.begin(), r.end()) - r.begin());
+    double peak = r[best];
+    const sh::vec3 d = g.dir[best];
+    ql[0] = std::asin(std::clamp(double(d.z), -1.0, 1.0));
+    ql[1] = std::atan2(double(d.y), double(d.x));
+    ql[2] = 0;
+    if (!(peak > 0)) {
+      ql[3] = ql[4] = 1, ql[5] = 0;
+      continue;
+    }
+    const int row = int(best) / g.cols, col = int(best) % g.cols;
+    int up = 0, side = 0;
+    while (row + up + 1 < g.rows && r[size_t((row + up + 1) * g.cols + col)] > peak / 2) ++up;
+    while (side + 1 < g.cols / 2 && r[size_t(row * g.cols + (col + side + 1) % g.cols)] > peak / 2)
+      ++side;
+    double d_el = std::max((up + 0.5) * dth, 0.5 * dth);
+    double d_az = std::max((side + 0.5) * dph * std::cos(ql[0]), 0.5 * dth);
+    ql[3] = std::clamp(std::log(2.0) / std::pow(std::sin(std::min(d_az, 1.5)), 2), 0.0, mu_max);
+    ql[4] = std::clamp(std::log(2.0) / std::pow(std::sin(std::min(d_el, 1.5)), 2), 0.0, mu_max);
+    ql[5] = peak;
+    for (size_t b = 0; b < g.bins(); ++b)
+      r[b] = std::max(0.0, r[b] - sh::asg_eval(float(ql[0]), float(ql[1]), float(ql[2]),
+                                               float(ql[3]), float(ql[4]), float(ql[5]), g.dir[b]));
+  }
+}
+
+/// Fit the lobes q of one slice alone (a start for the block fit); returns the final cost.
+double single_slice_fit(const FitGrid& g, const double* f, int L, const AsgFitSettings& s,
+                        double c_max, double* q) {
+  clamp_to_bounds(q, L, s.mu_max, c_max);
+  ceres::Problem pb;
+  pb.AddResidualBlock(new SliceCost(g, f, {1.0}, L), nullptr, q);
+  set_bounds(pb, q, L, s.mu_max, c_max);
+  ceres::Solver::Summary sum;
+  ceres::Solve(solver_options(s), &pb, &sum);
+  return sum.final_cost;
+}
+
+/// Reorder lobes b to follow lobes a (greedy nearest centres) and unwrap b's phi_z (period 2 pi)
+/// and phi_xy (period pi: the ASG is unchanged by x, y -> -x, -y) to lie nearest a's.
+void match_lobes(const double* a, double* b, int L) {
+  std::vector<double> out(size_t(kQ * L));
+  std::vector<char> used(size_t(L), 0);
+  for (int l = 0; l < L; ++l) {
+    const double* al = a + kQ * l;
+    sh::vec3 za, zb, x, y;
+    sh::asg_frame(float(al[0]), float(al[1]), float(al[2]), x, y, za);
+    int best = -1;
+    double best_d = -2;
+    for (int m = 0; m < L; ++m) {
+      if (used[size_t(m)]) continue;
+      const double* bm = b + kQ * m;
+      sh::asg_frame(float(bm[0]), float(bm[1]), float(bm[2]), x, y, zb);
+      double d = sh::dot(za, zb);
+      if (d > best_d) best_d = d, best = m;
+    }
+    used[size_t(best)] = 1;
+    double* o = &out[size_t(kQ * l)];
+    std::copy(b + kQ * best, b + kQ * best + kQ, o);
+    o[1] += 2 * M_PI * std::round((al[1] - o[1]) / (2 * M_PI));
+    o[2] += M_PI * std::round((al[2] - o[2]) / M_PI);
+  }
+  std::copy(out.begin(), out.end(), b);
+}
+
+/// Bilinear corner weights of slice (a, b) in a block, a, b in {0, 1, 2} (S.5).
+std::array<double, 4> corner_weights(double r, double s) {
+  return {(1 - r) * (1 - s), (1 - r) * s, r * (1 - s), r * s};
+}
+
+AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
+  const int M = int(sim.theta_i.size()), N = int(sim.h.size()), L = s.lobes;
+  if (M < 3 || N < 3 || M % 2 == 0 || N % 2 == 0)
+    throw std::invalid_argument("asg_fit: the theta_i and h sample counts must be odd and >= 3");
+  if (L < 1) throw std::invalid_argument("asg_fit: at least one lobe");
+  const FitGrid g = make_grid(sim, refl);
+  const int Mb = (M - 1) / 2, Nb = (N - 1) / 2, rows = Mb + 1, cols = Nb + 1, K = g.K;
+  double data_max = 0;
+  for (size_t sl = 0; sl < sim.slices.size(); ++sl)
+    for (size_t b = 0; b < g.bins(); ++b) data_max = std::max(data_max, g.slice(sl, 0)[b]);
+  const double c_max = std::max(10 * data_max, 1e-6);
+
+  std::vector<double> nodes(size_t(rows * cols * kQ * L), 0.0);
+  std::vector<char> fitted(size_t(rows * cols), 0);
+  auto node = [&](int i, int j) { return &nodes[size_t((i * cols + j) * kQ * L)]; };
+  auto slice_index = [&](int m, int n) { return size_t(m) * size_t(N) + size_t(n); };
+  const auto opts = solver_options(s);
+
+  // The first corner: greedy start and a single-slice fit; every other corner starts from it.
+  greedy_init(g, g.slice(slice_index(0, 0), 0), L, s.mu_max, node(0, 0));
+  single_slice_fit(g, g.slice(slice_index(0, 0), 0), L, s, c_max, node(0, 0));
+  for (int bm = 0; bm < Mb; ++bm)
+    for (int bn = 0; bn < Nb; ++bn) {
+      const int ci[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
+      // Unfitted corners get two starts, and the joint block fit runs from both: the fitted
+      // neighbour's lobes (keeps lobe correspondence and unwrapped angles continuous), and a
+      // fresh greedy start on the corner's own slice, matched to the neighbour's lobes. The
+      // block keeps whichever ends with the lower cost.
+      std::vector<double*> blocks;
+      for (auto& c : ci) blocks.push_back(node(c[0], c[1]));
+      std::vector<int> free_corners;
+      std::vector<const double*> neighbour;
+      for (int c = 0; c < 4; ++c) {
+        const int i = ci[c][0], j = ci[c][1];
+        if (fitted[size_t(i * cols + j)]) continue;
+        if (i == 0 && j == 0) {
+          free_corners.push_back(c);
+          neighbour.push_back(nullptr);  // its own greedy single-slice fit, made above
+          continue;
+        }
+        const int cand[4][2] = {{i - 1, j}, {i, j - 1}, {i - 1, j - 1}, {0, 0}};
+        const double* nb = node(0, 0);
+        for (auto& n : cand) {
+          if (n[0] < 0 || n[1] < 0) continue;
+          if (fitted[size_t(n[0] * cols + n[1])] || (n[0] == 0 && n[1] == 0)) {
+            nb = node(n[0], n[1]);
+            break;
+          }
+        }
+        free_corners.push_back(c);
+        neighbour.push_back(nb);
+      }
+      auto block_fit = [&](std::vector<std::vector<double>>& q) {
+        ceres::Problem pb;
+        std::vector<double*> ptr = blocks;
+        for (size_t f = 0; f < free_corners.size(); ++f) ptr[size_t(free_corners[f])] = q[f].data();
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) {
+            auto w = corner_weights(a / 2.0, b / 2.0);
+            std::vector<double> wv;
+            std::vector<double*> pv;
+            for (int c = 0; c < 4; ++c)
+              if (w[size_t(c)] > 0) wv.push_back(w[size_t(c)]), pv.push_back(ptr[size_t(c)]);
+            pb.AddResidualBlock(
+                new SliceCost(g, g.slice(slice_index(2 * bm + a, 2 * bn + b), 0), wv, L), nullptr,
+                pv);
+          }
+        for (int c = 0; c < 4; ++c) {
+          bool is_free = std::find(free_corners.begin(), free_corners.end(), c) != free_corners.end();
+          if (!is_free) {
+            pb.SetParameterBlockConstant(ptr[size_t(c)]);
+          } else {
+            clamp_to_bounds(ptr[size_t(c)], L, s.mu_max, c_max);
+            set_bounds(pb, ptr[size_t(c)], L, s.mu_max, c_max);
+          }
+        }
+        ceres::Solver::Summary sum;
+        ceres::Solve(opts, &pb, &sum);
+        return sum.final_cost;
+      };
+      std::vector<std::vector<double>> qa, qb;
+      for (size_t f = 0; f < free_corners.size(); ++f) {
+        const int c = free_corners[f];
+        const double* fs = g.slice(slice_index(2 * ci[c][0], 2 * ci[c][1]), 0);
+        std::vector<double> greedy(size_t(kQ * L));
+        greedy_init(g, fs, L, s.mu_max, greedy.data());
+        if (neighbour[f]) {
+          qa.emplace_back(neighbour[f], neighbour[f] + kQ * L);
+          match_lobes(neighbour[f], greedy.data(), L);
+          qb.push_back(greedy);
+        } else {
+          qa.emplace_back(node(0, 0), node(0, 0) + kQ * L);
+          qb.push_back(qa.back());
+        }
+      }
+      if (!free_corners.empty()) {
+        double ea = block_fit(qa);
+        double eb = block_fit(qb);
+        const auto& q = eb < ea ? qb : qa;
+        for (size_t f = 0; f < free_corners.size(); ++f)
+          std::copy(q[f].begin(), q[f].end(), blocks[size_t(free_corners[f])]);
+      }
+      for (auto& c : ci) fitted[size_t(c[0] * cols + c[1])] = 1;
+    }
+
+  AsgTable t;
+  t.lobes = L;
+  t.theta_i = sim.theta_i;
+  t.h = sim.h;
+  t.sigmas = refl ? std::vector<double>{0.0} : sim.settings.sigmas;
+  for (int i = 0; i < rows * cols * L; ++i) t.nodes.push_back(lobe_from(&nodes[size_t(i * kQ)]));
+
+  // Scale-downs (S.9) per block, and the fit errors.
+  t.scale.assign(size_t(Mb * Nb * K * L), 1.0);
+  t.block_nrmse.assign(size_t(Mb * Nb), 0.0);
+  std::vector<double> err_k(size_t(K), 0.0), norm_k(size_t(K), 0.0);
+  for (int bm = 0; bm < Mb; ++bm)
+    for (int bn = 0; bn < Nb; ++bn) {
+      const size_t blk = size_t(bm * Nb + bn);
+      // Lobe values G_l on every bin of the block's nine slices.
+      std::vector<std::vector<double>> G(9, std::vector<double>(g.bins() * size_t(L)));
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+          auto w = corner_weights(a / 2.0, b / 2.0);
+          std::vector<double> q(size_t(kQ * L), 0.0);
+          const double* cs[4] = {node(bm, bn), node(bm, bn + 1), node(bm + 1, bn),
+                                 node(bm + 1, bn + 1)};
+          for (int c = 0; c < 4; ++c)
+            for (int i = 0; i < kQ * L; ++i) q[size_t(i)] += w[size_t(c)] * cs[c][i];
+          for (size_t bin = 0; bin < g.bins(); ++bin)
+            for (int l = 0; l < L; ++l) {
+              const double* ql = &q[size_t(kQ * l)];
+              G[size_t(a * 3 + b)][bin * size_t(L) + size_t(l)] =
+                  sh::asg_eval(float(ql[0]), float(ql[1]), float(ql[2]), float(ql[3]),
+                               float(ql[4]), float(ql[5]), g.dir[bin]);
+            }
+        }
+      double* sc = &t.scale[blk * size_t(K * L)];
+      for (int k = 0; k < K; ++k) {
+        double* sk = sc + k * L;
+        if (k > 0) {
+          // Normal equations of the bounded least squares for s_{., k}.
+          std::vector<double> A(size_t(L * L), 0.0), rhs(size_t(L), 0.0);
+          for (int sl = 0; sl < 9; ++sl) {
+            const double* f = g.slice(slice_index(2 * bm + sl / 3, 2 * bn + sl % 3), k);
+            for (size_t bin = 0; bin < g.bins(); ++bin) {
+              const double* Gb = &G[size_t(sl)][bin * size_t(L)];
+              for (int l = 0; l < L; ++l) {
+                rhs[size_t(l)] += g.weight[bin] * Gb[l] * f[bin];
+                for (int m = 0; m < L; ++m) A[size_t(l * L + m)] += g.weight[bin] * Gb[l] * Gb[m];
+              }
+            }
+          }
+          const double* prev = sc + (k - 1) * L;
+          for (int l = 0; l < L; ++l) sk[l] = prev[l];
+          for (int sweep = 0; sweep < 200; ++sweep)
+            for (int l = 0; l < L; ++l) {
+              double diag = A[size_t(l * L + l)];
+              if (!(diag > 1e-300)) continue;  // a lobe with no support keeps s_{l,k-1}
+              double r = rhs[size_t(l)];
+              for (int m = 0; m < L; ++m)
+                if (m != l) r -= A[size_t(l * L + m)] * sk[m];
+              sk[l] = std::clamp(r / diag, 0.0, prev[l]);
+            }
+        }
+        // Errors of this level over the block's slices.
+        double e = 0, n = 0;
+        for (int sl = 0; sl < 9; ++sl) {
+          const double* f = g.slice(slice_index(2 * bm + sl / 3, 2 * bn + sl % 3), k);
+          for (size_t bin = 0; bin < g.bins(); ++bin) {
+            double m = 0;
+            for (int l = 0; l < L; ++l) m += sk[l] * G[size_t(sl)][bin * size_t(L) + size_t(l)];
+            e += g.weight[bin] * (m - f[bin]) * (m - f[bin]);
+            n += g.weight[bin] * f[bin] * f[bin];
+          }
+        }
+        if (k == 0) t.block_nrmse[blk] = n > 0 ? std::sqrt(e / n) : 0.0;
+        err_k[size_t(k)] += e;
+        norm_k[size_t(k)] += n;
+      }
+    }
+  for (int k = 0; k < K; ++k)
+    t.nrmse_per_sigma.push_back(norm_k[size_t(k)] > 0 ? std::sqrt(err_k[size_t(k)] / norm_k[size_t(k)]) : 0.0);
+  t.nrmse = t.nrmse_per_sigma[0];
+  return t;
+}
+
+}  // namespace
+
+AsgFitSettings asg_fit_settings(Quality q, bool refl) {
+  AsgFitSettings s;
+  switch (q) {
+    case Quality::Draft: s.lobes = refl ? 1 : 2, s.max_iterations = 20; break;
+    case Quality::Preview: s.lobes = refl ? 1 : 3, s.max_iterations = 30; break;
+    case Quality::Final: s.lobes = refl ? 2 : 4, s.max_iterations = 50; break;
+    case Quality::Reference: s.lobes = refl ? 2 : 6, s.max_iterations = 100; break;
+  }
+  return s;
+}
+
+AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, false); }
+AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, true); }
+
+std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma) {
+  const int M = int(t.theta_i.size()), N = int(t.h.size()), L = t.lobes;
+  auto locate = [](const std::vector<double>& grid, double x, int& block, double& frac) {
+    const int n = int(grid.size());
+    double u = (std::clamp(x, grid.front(), grid.back()) - grid.front()) /
+               (grid.back() - grid.front()) * (n - 1);
+    if (!std::isfinite(u)) u = 0;
+    block = std::clamp(int(std::floor(u / 2)), 0, (n - 1) / 2 - 1);
+    frac = std::clamp((u - 2 * block) / 2, 0.0, 1.0);  // S.6
+  };
+  int bm, bn;
+  double r, s;
+  locate(t.theta_i, theta_i, bm, r);
+  locate(t.h, h, bn, s);
+  (void)M, (void)N;
+  // S.10: the absorption interval.
+  const int K = int(t.sigmas.size());
+  int k = 0;
+  double tt = 0;
+  const double sg = std::isfinite(sigma) ? std::max(sigma, 0.0) : 0.0;
+  if (K > 1) {
+    if (sg >= t.sigmas.back()) {
+      k = K - 2, tt = 1;
+    } else {
+      while (k + 2 < K && sg > t.sigmas[size_t(k + 1)]) ++k;
+      tt = (sg - t.sigmas[size_t(k)]) / (t.sigmas[size_t(k + 1)] - t.sigmas[size_t(k)]);
+    }
+  }
+  const int Nb = (int(t.h.size()) - 1) / 2;
+  const double* sc = &t.scale[size_t((bm * Nb + bn) * K * L)];
+  auto w = corner_weights(r, s);
+  std::vector<AsgLobe> out(static_cast<size_t>(L));
+  for (int l = 0; l < L; ++l) {
+    const AsgLobe* c[4] = {&t.node(bm, bn, l), &t.node(bm, bn + 1, l), &t.node(bm + 1, bn, l),
+                           &t.node(bm + 1, bn + 1, l)};
+    AsgLobe q{0, 0, 0, 0, 0, 0};
+    for (int i = 0; i < 4; ++i) {  // S.7
+      q.theta_z += w[size_t(i)] * c[i]->theta_z;
+      q.phi_z += w[size_t(i)] * c[i]->phi_z;
+      q.phi_xy += w[size_t(i)] * c[i]->phi_xy;
+      q.mu1 += w[size_t(i)] * c[i]->mu1;
+      q.mu2 += w[size_t(i)] * c[i]->mu2;
+      q.c += w[size_t(i)] * c[i]->c;
+    }
+    double scale = 1;
+    if (K > 1) scale = (1 - tt) * sc[k * L + l] + tt * sc[(k + 1) * L + l];  // S.11
+    q.c *= scale;
+    out[size_t(l)] = q;
+  }
+  return out;
+}
+
+double asg_mixture_eval(const std::vector<AsgLobe>& lobes, const Vec3d& wo) {
+  sh::vec3 v(float(wo.x), float(wo.y), float(wo.z));
+  double s = 0;
+  for (const AsgLobe& q : lobes)
+    s += sh::asg_eval(float(q.theta_z), float(q.phi_z), float(q.phi_xy), float(q.mu1),
+                      float(q.mu2), float(q.c), v);
+  return s;
+}
+
+double asg_table_eval(const AsgTable& t, double theta_i, double h, double sigma, const Vec3d& wo) {
+  return asg_mixture_eval(asg_table_lobes(t, theta_i, h, sigma), wo);  // S.8, S.12
+}
+
+}  // namespace loom

@@ -1,0 +1,56 @@
+// Google Benchmark: the ray-wave baker's ply scattering simulation (rays per second, one thread
+// per slice, as the bake runs it) and the ASG block fit per quality preset.
+#include <benchmark/benchmark.h>
+#include <tbb/task_arena.h>
+
+#include "loom/asg_fit.h"
+#include "loom/ply_scattering.h"
+
+namespace {
+
+loom::PlyParams default_ply() { return loom::ply_params_from_yarn(loom::YarnSpec{}); }
+
+void BM_PlySimSlice(benchmark::State& st) {
+  auto p = default_ply();
+  loom::PlyGeometry g(p, loom::make_ply_fibers(p, 0, 0));
+  auto s = loom::ply_sim_settings(loom::Quality::Preview);
+  s.rays_per_slice = 20000;
+  const double theta = st.range(0) * M_PI / 180;
+  uint64_t rays = 0;
+  for (auto _ : st) {
+    benchmark::DoNotOptimize(loom::simulate_ply_slice(g, 1.55, s, theta, 0.0, 1));
+    rays += uint64_t(s.rays_per_slice);
+  }
+  st.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
+  st.SetLabel("theta_i " + std::to_string(st.range(0)) + " deg, one thread");
+}
+BENCHMARK(BM_PlySimSlice)->Arg(0)->Arg(45)->Arg(80)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_PlySimAll(benchmark::State& st) {
+  auto p = default_ply();
+  auto s = loom::ply_sim_settings(loom::Quality(st.range(0)));
+  uint64_t rays = 0;
+  for (auto _ : st) {
+    auto r = loom::simulate_ply_scattering(p, 1.55, s);
+    rays += r.rays;
+  }
+  st.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
+  st.SetLabel(loom::to_string(loom::Quality(st.range(0))));
+}
+BENCHMARK(BM_PlySimAll)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+void BM_AsgFit(benchmark::State& st) {
+  auto q = loom::Quality(st.range(0));
+  auto sim = loom::simulate_ply_scattering(default_ply(), 1.55, loom::ply_sim_settings(q));
+  double nrmse = 0;
+  for (auto _ : st) {
+    auto t = loom::asg_fit_high(sim, loom::asg_fit_settings(q, false));
+    nrmse = t.nrmse;
+  }
+  st.counters["nrmse"] = nrmse;
+  st.SetLabel(std::string(loom::to_string(q)) + ", L = " +
+              std::to_string(loom::asg_fit_settings(q, false).lobes));
+}
+BENCHMARK(BM_AsgFit)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+}  // namespace

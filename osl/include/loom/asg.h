@@ -1,0 +1,120 @@
+// Anisotropic Spherical Gaussian lobes (Xu et al. 2013), as the ray-wave model fits them to
+// simulated ply scattering (ray-wave supplement, section 1, Eq. S.1 and S.2).
+//
+//   G(x, y, z, mu1, mu2, c; v) = c max(v.z, 0) exp(-mu1 (v.x)^2 - mu2 (v.y)^2)       (S.1)
+//
+// with the frame [x, y, z] from three angles (theta_z, phi_z, phi_xy), (S.2):
+//   z  = (cos theta_z cos phi_z, cos theta_z sin phi_z, sin theta_z)
+//   x0 = (-sin phi_z, cos phi_z, 0),  y0 = (-sin theta_z cos phi_z, -sin theta_z sin phi_z, cos theta_z)
+//   x  = cos phi_xy x0 - sin phi_xy y0,  y = sin phi_xy x0 + cos phi_xy y0
+// Directions are in ply space: the ply runs along +z, theta is the elevation from the plane
+// normal to the ply (the papers' longitudinal angle) and phi the azimuth about the ply from +x.
+//
+// The integral over the sphere. In the lobe's frame v = (a, b, s) with s = v.z >= 0 and
+// dv = da db / s over the unit disk, so the cosine cancels the Jacobian exactly:
+//   I = c iint_{a^2 + b^2 <= 1} exp(-mu1 a^2 - mu2 b^2) da db
+//     = c int_0^{2 pi} (1 - exp(-k(phi))) / (2 k(phi)) dphi,  k = mu1 cos^2 phi + mu2 sin^2 phi.
+// The first part integrates in closed form, int_0^{2 pi} dphi / (2 k) = pi / sqrt(mu1 mu2); the
+// second is at most pi exp(-mu_min) / mu_min. Choice: the closed form pi c / sqrt(mu1 mu2) when
+// mu_min >= LOOM_ASG_CLOSED_FORM_MU (relative error below 5e-9), otherwise the periodic trapezoid
+// rule in phi over LOOM_ASG_INTEGRAL_STEPS points, which converges geometrically for this smooth
+// periodic integrand (tested against brute-force quadrature over the sphere).
+#ifndef LOOM_ASG_H
+#define LOOM_ASG_H
+#include "osl_compat.h"
+
+#define LOOM_ASG_CLOSED_FORM_MU 16.0
+#define LOOM_ASG_INTEGRAL_STEPS 64
+/// Bandwidths are clamped to [0, LOOM_ASG_MU_MAX]; beyond it exp() of the smallest off-centre
+/// angle a float can resolve underflows anyway.
+#define LOOM_ASG_MU_MAX 1.0e6
+
+/// Eq. S.2: the lobe frame from (theta_z, phi_z, phi_xy).
+LOOM_FN void asg_frame(float theta_z, float phi_z, float phi_xy, LOOM_OUT(vector) x,
+                       LOOM_OUT(vector) y, LOOM_OUT(vector) z) {
+  float st = sin(theta_z), ct = cos(theta_z), sp = sin(phi_z), cp = cos(phi_z);
+  z = vector(ct * cp, ct * sp, st);
+  vector x0 = vector(-sp, cp, 0.0);
+  vector y0 = vector(-st * cp, -st * sp, ct);
+  float sa = sin(phi_xy), ca = cos(phi_xy);
+  x = ca * x0 - sa * y0;
+  y = sa * x0 + ca * y0;
+}
+
+/// Eq. S.1 for a unit direction v. Non-finite or negative parameters give 0 rather than NaN.
+LOOM_FN float asg_eval(float theta_z, float phi_z, float phi_xy, float mu1, float mu2, float c,
+                       vector v) {
+  vector x, y, z;
+  asg_frame(theta_z, phi_z, phi_xy, x, y, z);
+  float vz = dot(v, z);
+  if (!(vz > 0.0) || !(c > 0.0))
+    return 0.0;
+  float m1 = clamp(mu1, 0.0, LOOM_ASG_MU_MAX), m2 = clamp(mu2, 0.0, LOOM_ASG_MU_MAX);
+  float vx = dot(v, x), vy = dot(v, y);
+  return c * vz * exp(-m1 * vx * vx - m2 * vy * vy);
+}
+
+/// (1 - exp(-k)) / (2 k), continuous at k = 0 (value 1/2).
+LOOM_FN float asg_disk_radial(float k) {
+  if (k < 1e-4)
+    return 0.5 - 0.25 * k;
+  return (1.0 - exp(-k)) / (2.0 * k);
+}
+
+/// The integral of Eq. S.1 over the sphere (see the header comment for the method).
+LOOM_FN float asg_integral(float mu1_in, float mu2_in, float c) {
+  if (!(c > 0.0))
+    return 0.0;
+  float mu1 = clamp(mu1_in, 0.0, LOOM_ASG_MU_MAX), mu2 = clamp(mu2_in, 0.0, LOOM_ASG_MU_MAX);
+  if (min(mu1, mu2) >= LOOM_ASG_CLOSED_FORM_MU)
+    return c * LOOM_M_PI / sqrt(mu1 * mu2);
+  float sum = 0.0;
+  float dphi = 2.0 * LOOM_M_PI / LOOM_ASG_INTEGRAL_STEPS;
+  for (int i = 0; i < LOOM_ASG_INTEGRAL_STEPS; i += 1) {
+    float ph = (i + 0.5) * dphi;
+    float cph = cos(ph), sph = sin(ph);
+    sum += asg_disk_radial(mu1 * cph * cph + mu2 * sph * sph);
+  }
+  return c * sum * dphi;
+}
+
+/// Eq. S.1 and its gradient with respect to the six parameters (theta_z, phi_z, phi_xy, mu1,
+/// mu2, c), for the fitter. Uses dz/dtheta = y0, dz/dphi = cos(theta) x0, dx0/dphi = e,
+/// dy0/dtheta = -z, dy0/dphi = -sin(theta) x0 with e = (-cos phi, -sin phi, 0), dx/dphi_xy = -y,
+/// dy/dphi_xy = x. The gradient of the max() is taken as 0 where v.z <= 0.
+LOOM_FN float asg_eval_grad(float theta_z, float phi_z, float phi_xy, float mu1, float mu2,
+                            float c, vector v, LOOM_OUT(vector) g_angles,
+                            LOOM_OUT(vector) g_shape) {
+  g_angles = vector(0.0);
+  g_shape = vector(0.0);
+  float st = sin(theta_z), ct = cos(theta_z), sp = sin(phi_z), cp = cos(phi_z);
+  vector z = vector(ct * cp, ct * sp, st);
+  float vz = dot(v, z);
+  if (!(vz > 0.0))
+    return 0.0;
+  vector x0 = vector(-sp, cp, 0.0);
+  vector y0 = vector(-st * cp, -st * sp, ct);
+  vector e = vector(-cp, -sp, 0.0);
+  float sa = sin(phi_xy), ca = cos(phi_xy);
+  vector x = ca * x0 - sa * y0;
+  vector y = sa * x0 + ca * y0;
+  float vx = dot(v, x), vy = dot(v, y);
+  float ex = exp(-mu1 * vx * vx - mu2 * vy * vy);
+  float val = c * vz * ex;
+  // d/dtheta: z' = y0, x' = -sa (-z) = sa z, y' = ca (-z).
+  float dvz_t = dot(v, y0), dvx_t = sa * vz, dvy_t = -ca * vz;
+  // d/dphi: z' = ct x0, x0' = e, y0' = -st x0.
+  float ve = dot(v, e), vx0 = dot(v, x0);
+  float dvz_p = ct * vx0, dvx_p = ca * ve + sa * st * vx0, dvy_p = sa * ve - ca * st * vx0;
+  // d/dphi_xy: x' = -y, y' = x.
+  float dvx_a = -vy, dvy_a = vx;
+  float dexp_t = -2.0 * (mu1 * vx * dvx_t + mu2 * vy * dvy_t);
+  float dexp_p = -2.0 * (mu1 * vx * dvx_p + mu2 * vy * dvy_p);
+  float dexp_a = -2.0 * (mu1 * vx * dvx_a + mu2 * vy * dvy_a);
+  g_angles = vector(c * ex * (dvz_t + vz * dexp_t), c * ex * (dvz_p + vz * dexp_p),
+                    val * dexp_a);
+  g_shape = vector(-val * vx * vx, -val * vy * vy, vz * ex);
+  return val;
+}
+
+#endif

@@ -1,0 +1,163 @@
+// ASG block fitting (Eq. S.3-S.12): recovery of known mixtures from synthetic data, continuity
+// across block borders, monotone scale-downs, finite values at the extremes, on real data.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "loom/asg_fit.h"
+#include "loom/shading.h"
+
+namespace {
+
+namespace sh = loom::shading;
+
+/// True lobes that vary bilinearly over (theta_i, h) in [-a, a] x [-1, 1] (so S.5/S.7 can
+/// represent them exactly), with scale-downs s_{l,k}.
+struct Truth {
+  double tmax = 1.2;
+  std::vector<double> sigmas{0, 10, 100};
+  std::vector<std::vector<double>> scale{{1, 0.6, 0.2}, {1, 0.3, 0.01}};
+  std::vector<loom::AsgLobe> lobes(double th, double h) const {
+    double u = th / tmax, v = h;
+    return {
+        loom::AsgLobe{-th * 0.9, 1.3 + 0.4 * v, 0.2 + 0.1 * u, 60 + 20 * u, 8 + 3 * v, 2.0 + 0.5 * v},
+        loom::AsgLobe{0.2 * u, -1.6 + 0.3 * u, -0.3, 5 + 2 * v, 30 - 10 * u, 0.8 + 0.2 * u},
+    };
+  }
+  double value(double th, double h, int k, const loom::Vec3d& w) const {
+    auto q = lobes(th, h);
+    for (size_t l = 0; l < q.size(); ++l) q[l].c *= scale[l][size_t(k)];
+    return loom::asg_mixture_eval(q, w);
+  }
+};
+
+loom::PlySimResult synthetic(const Truth& tr, int M, int N) {
+  loom::PlySimResult r;
+  auto& s = r.settings;
+  s.theta_i_count = M, s.h_count = N, s.theta_o_count = 32, s.phi_o_count = 64;
+  s.sigmas = tr.sigmas;
+  for (int m = 0; m < M; ++m) r.theta_i.push_back(-tr.tmax + 2 * tr.tmax * m / (M - 1));
+  for (int n = 0; n < N; ++n) r.h.push_back(-1 + 2.0 * n / (N - 1));
+  const size_t bins = size_t(s.theta_o_count) * s.phi_o_count;
+  for (int m = 0; m < M; ++m)
+    for (int n = 0; n < N; ++n) {
+      loom::PlySimSlice sl;
+      sl.theta_i = r.theta_i[m], sl.h = r.h[n];
+      sl.refl.assign(bins, 0);
+      sl.high.assign(bins * tr.sigmas.size(), 0);
+      for (size_t k = 0; k < tr.sigmas.size(); ++k)
+        for (int t = 0; t < s.theta_o_count; ++t)
+          for (int p = 0; p < s.phi_o_count; ++p)
+            sl.high[k * bins + size_t(t) * s.phi_o_count + p] = float(
+                tr.value(sl.theta_i, sl.h, int(k), loom::ply_sim_bin_direction(s, t, p)));
+      r.slices.push_back(sl);
+    }
+  return r;
+}
+
+/// Relative L2 (solid-angle weighted) between the table and the truth at (th, h, k).
+double rel_error(const loom::AsgTable& t, const Truth& tr, double th, double h, int k) {
+  double e = 0, n = 0;
+  for (int i = 0; i < 64; ++i) {
+    double el = -M_PI / 2 + M_PI * (i + 0.5) / 64;
+    for (int j = 0; j < 128; ++j) {
+      double az = -M_PI + M_PI * (j + 0.5) / 64;
+      loom::Vec3d w{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+      double a = loom::asg_table_eval(t, th, h, tr.sigmas[size_t(k)], w), b = tr.value(th, h, k, w);
+      e += std::cos(el) * (a - b) * (a - b);
+      n += std::cos(el) * b * b;
+    }
+  }
+  return std::sqrt(e / n);
+}
+
+}  // namespace
+
+TEST(AsgFit, RecoversAKnownMixtureAndItsScaleDowns) {
+  Truth tr;
+  auto sim = synthetic(tr, 5, 5);  // 2 x 2 fitting blocks
+  loom::AsgFitSettings s;
+  s.lobes = 2;
+  s.max_iterations = 200;
+  auto t = loom::asg_fit_high(sim, s);
+  EXPECT_LT(t.nrmse, 0.02);
+  for (double b : t.block_nrmse) EXPECT_LT(b, 0.02);
+  // Off the simulated grid, inside and across blocks, at every absorption level.
+  for (double th : {-1.05, -0.2, 0.31, 0.9})
+    for (double h : {-0.7, 0.1, 0.85})
+      for (int k = 0; k < 3; ++k) EXPECT_LT(rel_error(t, tr, th, h, k), 0.04) << th << " " << h << " " << k;
+  // The recovered scale-downs match the truth's (lobes may come out in either order).
+  for (size_t blk = 0; blk < 4; ++blk)
+    for (int k = 1; k < 3; ++k) {
+      double a = t.scale[(blk * 3 + k) * 2 + 0], b = t.scale[(blk * 3 + k) * 2 + 1];
+      double direct = std::fabs(a - tr.scale[0][k]) + std::fabs(b - tr.scale[1][k]);
+      double swapped = std::fabs(a - tr.scale[1][k]) + std::fabs(b - tr.scale[0][k]);
+      EXPECT_LT(std::min(direct, swapped), 0.03) << "block " << blk << " level " << k;
+    }
+}
+
+TEST(AsgFit, LobesAreContinuousAcrossBlockBorders) {
+  Truth tr;
+  tr.tmax = 1.0;
+  auto sim = synthetic(tr, 5, 5);
+  loom::AsgFitSettings s;
+  s.lobes = 2;
+  s.max_iterations = 30;  // a rough fit is enough: continuity must hold regardless
+  auto t = loom::asg_fit_high(sim, s);
+  const double eps = 1e-7;
+  // Borders: theta_i = t.theta_i[2] between block rows, h = t.h[2] between block columns.
+  for (double h : {-0.6, 0.3}) {
+    auto a = loom::asg_table_lobes(t, t.theta_i[2] - eps, h, 0);
+    auto b = loom::asg_table_lobes(t, t.theta_i[2] + eps, h, 0);
+    for (size_t l = 0; l < a.size(); ++l) {
+      EXPECT_NEAR(a[l].theta_z, b[l].theta_z, 1e-5);
+      EXPECT_NEAR(a[l].phi_z, b[l].phi_z, 1e-5);
+      EXPECT_NEAR(a[l].mu1, b[l].mu1, 1e-3);
+      EXPECT_NEAR(a[l].mu2, b[l].mu2, 1e-3);
+      EXPECT_NEAR(a[l].c, b[l].c, 1e-5);
+    }
+  }
+  for (double th : {-0.5, 0.2}) {
+    auto a = loom::asg_table_lobes(t, th, t.h[2] - eps, 0);
+    auto b = loom::asg_table_lobes(t, th, t.h[2] + eps, 0);
+    for (size_t l = 0; l < a.size(); ++l) {
+      EXPECT_NEAR(a[l].phi_xy, b[l].phi_xy, 1e-5);
+      EXPECT_NEAR(a[l].c, b[l].c, 1e-5);
+    }
+  }
+}
+
+TEST(AsgFit, RealPlyFitIsMonotoneInSigmaAndFiniteAtTheExtremes) {
+  loom::YarnSpec y;
+  auto p = loom::ply_params_from_yarn(y);
+  auto st = loom::ply_sim_settings(loom::Quality::Draft);
+  st.theta_i_count = 5, st.h_count = 5, st.rays_per_slice = 4000;
+  auto sim = loom::simulate_ply_scattering(p, y.ior, st);
+  auto t = loom::asg_fit_high(sim, loom::asg_fit_settings(loom::Quality::Draft, false));
+  const int K = int(t.sigmas.size()), L = t.lobes;
+  for (size_t blk = 0; blk < t.block_nrmse.size(); ++blk)
+    for (int l = 0; l < L; ++l) {
+      EXPECT_EQ(t.scale[(blk * K + 0) * L + l], 1.0);
+      for (int k = 1; k < K; ++k) {
+        double a = t.scale[(blk * K + k) * L + l], b = t.scale[(blk * K + k - 1) * L + l];
+        EXPECT_GE(a, 0.0);
+        EXPECT_LE(a, b);
+      }
+    }
+  // More lobes fit better (the objective is the same, the model strictly richer).
+  auto one = loom::AsgFitSettings{};
+  one.lobes = 1, one.max_iterations = 20;
+  auto t1 = loom::asg_fit_high(sim, one);
+  EXPECT_LT(t.nrmse, t1.nrmse) << L << " lobes against 1";
+  EXPECT_LT(t.nrmse, 0.7);
+  auto r = loom::asg_fit_refl(sim, loom::asg_fit_settings(loom::Quality::Draft, true));
+  EXPECT_EQ(r.sigmas.size(), 1u);
+  for (double th : {-M_PI / 2, -1.4, 0.0, M_PI / 2, double(NAN)})
+    for (double h : {-1.0, 1.0, 0.0, double(INFINITY)})
+      for (double sg : {0.0, 1e-9, 1e9, double(NAN), -1.0})
+        for (loom::Vec3d w : {loom::Vec3d{0, 1, 0}, loom::Vec3d{0, 0, 1}, loom::Vec3d{1, 0, 0}}) {
+          double v = loom::asg_table_eval(t, th, h, sg, w);
+          ASSERT_TRUE(std::isfinite(v) && v >= 0) << th << " " << h << " " << sg;
+          ASSERT_TRUE(std::isfinite(loom::asg_table_eval(r, th, h, sg, w)));
+        }
+}
