@@ -88,6 +88,7 @@ def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, 
     """
     scene = scene or bpy.context.scene
     manifest = read_manifest(atlas_dir)
+    _material.check_tier(manifest, atlas_dir)  # before any material is created or changed
     if scale is None:
         scale = _material.physical_repeats(obj, manifest, size_factor)
     mat = _material.ensure_material(obj, material)

@@ -15,7 +15,7 @@ import os
 import bpy
 
 from . import node_mode, osl_paths, osl_source
-from .bakery import read_manifest
+from .bakery import LoomBakeError, read_manifest
 
 OSL_TEXT_NAME = osl_source.SURFACE_SHADER
 MODES = ("AUTO", "OSL", "NODES")
@@ -130,12 +130,22 @@ def _clear_tree(mat):
     return nt, out
 
 
+def check_tier(manifest: dict, atlas_dir: str) -> None:
+    """Raise LoomBakeError for an atlas whose model tier cannot be shaded here yet (a ray-wave
+    atlas holds the baker-side ply tables only): say so rather than render something else under
+    its name. Called before any material or node tree is touched."""
+    tier = manifest.get("tier", "surface")
+    if tier != "surface":
+        raise LoomBakeError(f"{atlas_dir}: {node_mode.tier_problem(tier)}")
+
+
 def build_material(mat, atlas_dir: str, mode: str = "AUTO", scale: float = 1.0, scene=None,
                    interpolation: str = "Linear") -> AssignResult:
     """Build ``mat``'s node tree for the atlas. Returns what was done."""
     scene = scene or bpy.context.scene
     atlas_dir = os.path.abspath(atlas_dir)
     manifest = read_manifest(atlas_dir)
+    check_tier(manifest, atlas_dir)
     used, reason = resolve_mode(mode, scene)
     if used == "OSL":
         try:

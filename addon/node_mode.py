@@ -294,6 +294,12 @@ def load_atlas_image(atlas_dir: str, manifest: dict, name: str, label: str):
 # ======================================================================= the group
 
 
+def tier_problem(tier: str) -> str:
+    """Why an atlas of a model tier other than the surface one cannot be shaded here (yet)."""
+    return (f"a \"{tier}\" atlas: Loom cannot shade the {tier} tier in Blender yet "
+            f"(bake the spec with \"model\": {{\"tier\": \"surface\"}})")
+
+
 def atlas_problem(atlas_dir: str) -> str | None:
     """None if node mode can read this atlas, else why not (missing maps, a LUT layout other
     than the shared headers')."""
@@ -305,6 +311,9 @@ def atlas_problem(atlas_dir: str) -> str | None:
         textures = manifest["textures"]
     except (OSError, ValueError, KeyError) as exc:
         return f"unreadable manifest: {exc}"
+    tier = manifest.get("tier", "surface")
+    if tier != "surface":
+        return tier_problem(tier)
     missing = [m for m in (*MAPS, LUT) if m not in textures]
     if missing:
         return f"maps missing: {', '.join(missing)}"

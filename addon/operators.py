@@ -37,6 +37,7 @@ def apply_atlas(context, mat, obj, atlas_dir: str) -> material.AssignResult:
     """Build ``mat`` for the atlas with the material's Loom settings."""
     s = mat.loom
     manifest = bakery.read_manifest(atlas_dir)
+    material.check_tier(manifest, atlas_dir)
     scale = s.repeats
     if s.scale_mode == "PHYSICAL":
         scale = material.physical_repeats(obj, manifest, s.size_factor)

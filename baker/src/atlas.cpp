@@ -21,6 +21,7 @@
 
 #include "loom/albedo_lut.h"
 #include "loom/colour.h"
+#include "loom/ply_tables.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -254,6 +255,27 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
                                    t["size"].dump(), map_size->dump()));
     }
   }
+  // Ray-wave atlases: every yarn's tables are textures of this atlas.
+  if (m.value("tier", "") == "raywave") {
+    if (!m.contains("raywave") || !m["raywave"].is_object() || !m["raywave"].contains("yarns") ||
+        !m["raywave"]["yarns"].is_object()) {
+      errors.push_back("raywave: missing (a ray-wave atlas lists its ply tables there)");
+    } else {
+      for (const char* yarn : {"warp", "weft"}) {
+        const json& y = m["raywave"]["yarns"].value(yarn, json());
+        if (!y.is_object() || !y.contains("files") || !y["files"].is_object()) {
+          errors.push_back(fmt::format("raywave.yarns.{}: missing or without \"files\"", yarn));
+          continue;
+        }
+        for (const char* f : {"high", "high_scale", "refl"}) {
+          const json& name = y["files"].value(f, json());
+          if (!name.is_string() || !tex.contains(name.get<std::string>()))
+            errors.push_back(fmt::format("raywave.yarns.{}.files.{}: not a texture of the atlas",
+                                         yarn, f));
+        }
+      }
+    }
+  }
   if (manifest_out) *manifest_out = m;
   return errors;
 }
@@ -339,6 +361,54 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                      "j at max(j/{3}, {4})); columns: view azimuth about t over [0, pi]",
                      LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_ALBEDO_LUT_SIZE,
                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}};
+    json raywave;
+    if (spec.tier == Tier::Raywave) {
+      raywave = {{"status", "ply tables (single ply, Eq. S.1-S.12) baked; multi-ply, double-layer, "
+                            "diffraction, noise and shading are not yet"},
+                 {"yarns", json::object()}};
+      const json canon_warp = canon["warp"], canon_weft = canon["weft"];
+      for (const char* yarn : {"warp", "weft"}) {
+        const bool weft_same = std::string(yarn) == "weft" && canon_weft == canon_warp;
+        if (weft_same) {
+          raywave["yarns"]["weft"] = raywave["yarns"]["warp"];
+          raywave["yarns"]["weft"]["yarn"] = "weft";
+          raywave["yarns"]["weft"]["same_as"] = "warp";
+          continue;
+        }
+        const YarnSpec& y = std::string(yarn) == "warp" ? spec.warp : spec.weft;
+        PlyTables pt = bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn);
+        json entry = ply_tables_manifest(pt, yarn);
+        auto add_table = [&](const Image& img, const std::string& name,
+                             std::vector<std::string> channels, const std::string& what) {
+          write_map(img, tmp, name, false, "clamp", channels);
+          json range = json::array();
+          for (int c = 0; c < img.channels; ++c) {
+            float lo = INFINITY, hi = -INFINITY;
+            for (size_t i = size_t(c); i < img.data.size(); i += size_t(img.channels))
+              lo = std::min(lo, img.data[i]), hi = std::max(hi, img.data[i]);
+            range.push_back({lo, hi});
+          }
+          textures[name] = {{"file", name + ".tx"},
+                            {"node_file", name + ".exr"},
+                            {"channels", channels},
+                            {"range", range},
+                            {"units", std::vector<std::string>(channels.size(), "")},
+                            {"format", "float"},
+                            {"size", {img.width, img.height}},
+                            {"tiling", "clamp"},
+                            {"description", what + " (layout: baker/include/loom/ply_tables.h)"}};
+        };
+        add_table(asg_nodes_image(pt.high), entry["files"]["high"],
+                  {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
+                  "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes");
+        add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
+                  "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k");
+        add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
+                  {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
+                  "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes");
+        raywave["yarns"][yarn] = entry;
+      }
+    }
     for (auto& [name, t] : textures.items()) {
       t["sha256"] = sha256_file(tmp / t["file"].get<std::string>());
       t["node_sha256"] = sha256_file(tmp / t["node_file"].get<std::string>());
@@ -363,6 +433,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           {"rows", "row 0 of every file is the top (v = 1); Blender's v = 0 is the bottom"},
           {"uv", "one weave repeat spans uv [0,1)^2; shaders wrap uv themselves"}}},
         {"textures", textures}};
+    if (!raywave.is_null()) manifest["raywave"] = raywave;
     {
       std::ofstream out(tmp / "manifest.json");
       out << manifest.dump(2) << "\n";

@@ -395,9 +395,9 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
   r.reject_unknown();
 
   // Cross-field checks.
-  if (s.tier != Tier::Surface)
+  if (s.tier == Tier::Fiber)
     errors.push_back(fmt::format("$.model.tier: \"{}\" is not available yet in this baker; "
-                                 "allowed now: \"surface\"",
+                                 "allowed now: \"surface\", \"raywave\" (baker-side ply tables)",
                                  to_string(s.tier)));
   // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
   int rows = 2, cols = 2;

@@ -10,6 +10,7 @@
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
 #include "loom/ply_scattering.h"
+#include "loom/ply_tables.h"
 #include "loom/shading.h"
 #include "loom/spec.h"
 
@@ -145,6 +146,26 @@ int main(int argc, char** argv) {
   plysim->add_option("--quality", plysim_quality, "draft | preview | final | reference");
   plysim->add_option("--seed", plysim_seed, "random seed");
 
+  auto* raywave = eval->add_subcommand(
+      "raywave", "the fitted ply scattering of a ray-wave atlas (Eq. S.8, S.12) at one direction");
+  std::string rw_atlas, rw_wo_s, rw_yarn = "warp";
+  double rw_theta = 0, rw_h = 0, rw_sigma = 0;
+  bool rw_raw = false;
+  raywave->add_option("--atlas", rw_atlas, "ray-wave atlas directory")->required();
+  raywave->add_option("--theta-i", rw_theta, "incident angle, degrees [-90, 90]")
+      ->required()
+      ->check(CLI::Range(-90.0, 90.0));
+  raywave->add_option("--h", rw_h, "offset across the ply, [-1, 1]")
+      ->required()
+      ->check(CLI::Range(-1.0, 1.0));
+  raywave->add_option("--sigma", rw_sigma, "fiber absorption, 1/mm, [0, 1e6]")
+      ->check(CLI::Range(0.0, 1e6));
+  raywave->add_option("--wo", rw_wo_s, "X,Y,Z outgoing direction in ply space")->required();
+  raywave->add_option("--yarn", rw_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
+  raywave->add_flag("--raw", rw_raw,
+                    "also re-run the simulation of the nearest grid slice (identical to the "
+                    "bake's: same seed) and print its value in the bin of --wo");
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -276,6 +297,55 @@ int main(int argc, char** argv) {
                                float(q[5]), dir);
       float integral = sh::asg_integral(float(q[3]), float(q[4]), float(q[5]));
       std::cout << json{{"value", val}, {"integral", integral}}.dump() << std::endl;
+      return 0;
+    }
+    if (*raywave) {
+      std::vector<double> wo;
+      if (!parse_vec(rw_wo_s, 3, wo)) {
+        std::cerr << "error: --wo: expected X,Y,Z (three finite numbers, not all zero)\n";
+        return 2;
+      }
+      double n = std::sqrt(wo[0] * wo[0] + wo[1] * wo[1] + wo[2] * wo[2]);
+      if (!(n > 0)) {
+        std::cerr << "error: --wo: the direction must not be the zero vector\n";
+        return 2;
+      }
+      loom::Vec3d w{wo[0] / n, wo[1] / n, wo[2] / n};
+      auto atlas = loom::load_atlas(rw_atlas);
+      auto t = loom::load_ply_tables(atlas, rw_yarn);
+      const double th = rw_theta * M_PI / 180;
+      double high = loom::asg_table_eval(t.high, th, rw_h, rw_sigma, w);
+      double refl = loom::asg_table_eval(t.refl, th, rw_h, 0, w);
+      json out = {{"value", refl + high}, {"refl", refl}, {"high", high}, {"yarn", rw_yarn},
+                  {"lobes", {{"high", t.high.lobes}, {"refl", t.refl.lobes}}}};
+      if (rw_raw) {
+        auto res = loom::parse_spec(atlas.manifest["spec"]);
+        if (!res.ok()) throw std::runtime_error("the atlas's spec does not parse: " + res.errors[0]);
+        const loom::YarnSpec& y = rw_yarn == "weft" ? res.spec.weft : res.spec.warp;
+        auto st = loom::ply_sim_settings(res.spec.quality);
+        auto nearest = [](const std::vector<double>& g, double x) {
+          size_t best = 0;
+          for (size_t i = 1; i < g.size(); ++i)
+            if (std::fabs(g[i] - x) < std::fabs(g[best] - x)) best = i;
+          return best;
+        };
+        size_t m = nearest(t.high.theta_i, th), hn = nearest(t.high.h, rw_h);
+        st.sigmas = {0.0};
+        if (rw_sigma > 0) st.sigmas.push_back(rw_sigma);
+        auto p = loom::ply_params_from_yarn(y);
+        loom::PlyGeometry g(p, loom::make_ply_fibers(p, 0, 0));
+        auto sl = loom::simulate_ply_slice(g, y.ior, st, t.high.theta_i[m], t.high.h[hn],
+                                           m * t.high.h.size() + hn);
+        int bt, bp;
+        loom::ply_sim_bin_of(st, w, bt, bp);
+        const size_t bins = size_t(st.theta_o_count) * size_t(st.phi_o_count);
+        const size_t b = size_t(bt) * size_t(st.phi_o_count) + size_t(bp);
+        double raw_refl = sl.refl[b], raw_high = sl.high[(st.sigmas.size() - 1) * bins + b];
+        out["raw"] = {{"value", raw_refl + raw_high}, {"refl", raw_refl}, {"high", raw_high},
+                      {"theta_i_deg", t.high.theta_i[m] * 180 / M_PI}, {"h", t.high.h[hn]},
+                      {"rays", st.rays_per_slice}};
+      }
+      std::cout << out.dump() << std::endl;
       return 0;
     }
     if (*plysim) {

@@ -230,6 +230,27 @@ def main():
     mat.loom.quality = "draft"
     loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
 
+    # 5c. A ray-wave atlas (baker-side tables only) is refused with the reason, before any
+    #     material is created or changed.
+    import tempfile
+
+    fake = tempfile.mkdtemp(prefix="loom-raywave-")
+    with open(os.path.join(atlas, "manifest.json"), encoding="utf-8") as f:
+        manifest = json.load(f)
+    manifest["tier"] = "raywave"
+    with open(os.path.join(fake, "manifest.json"), "w", encoding="utf-8") as f:
+        json.dump(manifest, f)
+    before = (mat.name, len(bpy.data.materials), [s.material for s in plane.material_slots])
+    try:
+        loom.api.assign(plane, fake, mode="nodes", scale=1.0)
+    except loom.api.LoomError as exc:
+        assert "cannot shade the raywave tier" in str(exc), str(exc)
+    else:
+        raise AssertionError("a ray-wave atlas was assigned")
+    after = (mat.name, len(bpy.data.materials), [s.material for s in plane.material_slots])
+    assert before == after, (before, after)
+    print("loom-test: a ray-wave atlas is refused with its reason; nothing changed")
+
     # 6. The API in every mode; without OSL nothing may leave a Script node behind.
     for mode in ("auto", "osl", "nodes"):
         m = loom.api.assign(plane, atlas, mode=mode, scale=None)

@@ -118,8 +118,10 @@ TEST(Spec, QualityOverrideAndUnavailableTier) {
   EXPECT_EQ(parse_spec(base(), "final").spec.quality, loom::Quality::Final);
   EXPECT_FALSE(parse_spec(base(), "ultra").ok());
   json d = base();
-  d["model"]["tier"] = "raywave";
+  d["model"]["tier"] = "fiber";
   expect_one_error(d, {"$.model.tier", "not available yet"});
+  d["model"]["tier"] = "raywave";
+  EXPECT_TRUE(parse_spec(d).ok());
 }
 
 TEST(Spec, ColourForms) {

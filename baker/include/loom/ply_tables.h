@@ -1,0 +1,54 @@
+// The ray-wave ply tables of an atlas: per yarn (warp, weft), the fitted ASG lobes of f_high and
+// f_refl (asg_fit.h) and the absorption scale-downs, as float images plus manifest metadata.
+//
+// Layout (rows counted from the bottom, as every Loom image in memory; files have row 0 on top):
+//   ply_high_<yarn>   corner nodes of the f_high fit (Eq. S.5-S.7): one row per theta_i node
+//                     i = 0 .. M', two RGBA texels per (h node j, lobe l) at column 2 (j L + l):
+//                     (theta_z, phi_z, phi_xy, mu1) and (mu2, c, 0, 0). Angles in radians, phi
+//                     unwrapped (interpolate them as stored).
+//   ply_high_scale_<yarn>  scale-downs s_{l,k} (Eq. S.9): one channel, column bn L + l, row
+//                     bm K + k, per fitting block (bm, bn) and absorption level k.
+//   ply_refl_<yarn>   corner nodes of the f_refl fit, the ply_high layout with its own L.
+// Grids (theta_i and h uniform, sigma levels in 1/mm), lobe counts and fit errors are in the
+// manifest under "raywave". Identical warp and weft yarns share one set of files.
+#pragma once
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "loom/asg_fit.h"
+#include "loom/atlas.h"
+#include "loom/ply_maps.h"
+#include "loom/spec.h"
+
+namespace loom {
+
+struct PlyTables {
+  AsgTable high, refl;
+  PlySimSettings sim;
+  uint64_t rays = 0;
+  double sim_seconds = 0, fit_seconds = 0;
+};
+
+/// Simulate the yarn's ply and fit its tables at the given quality.
+PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progress = {},
+                          const std::string& stage = "plysim");
+
+/// Node and scale images of a table (layout above).
+Image asg_nodes_image(const AsgTable& t);
+Image asg_scale_image(const AsgTable& t);
+/// The manifest entry of a yarn's tables (grids, lobe counts, errors, simulation settings).
+nlohmann::json ply_tables_manifest(const PlyTables& t, const std::string& yarn);
+/// Rebuild a table from its images and manifest entry ("high" or "refl"); throws
+/// std::runtime_error naming what is inconsistent.
+AsgTable asg_table_from_images(const nlohmann::json& entry, const std::string& which,
+                               const Image& nodes, const Image* scale);
+
+/// The f_high and f_refl tables of `yarn` ("warp" or "weft") of a loaded ray-wave atlas; throws
+/// std::runtime_error if the atlas has none.
+struct LoadedPlyTables {
+  AsgTable high, refl;
+  nlohmann::json entry;  ///< the manifest's raywave.yarns.<yarn>
+};
+LoadedPlyTables load_ply_tables(const Atlas& a, const std::string& yarn);
+
+}  // namespace loom

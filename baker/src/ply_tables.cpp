@@ -1,0 +1,177 @@
+#include "loom/ply_tables.h"
+
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+#include <stdexcept>
+
+namespace loom {
+
+using nlohmann::json;
+
+PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progress,
+                          const std::string& stage) {
+  PlyTables out;
+  const PlyParams p = ply_params_from_yarn(y);
+  out.sim = ply_sim_settings(q);
+  if (progress) progress(stage, 0.0);
+  auto t0 = std::chrono::steady_clock::now();
+  PlySimResult sim = simulate_ply_scattering(p, y.ior, out.sim);
+  auto t1 = std::chrono::steady_clock::now();
+  if (progress) progress(stage, 0.5);
+  out.high = asg_fit_high(sim, asg_fit_settings(q, false));
+  out.refl = asg_fit_refl(sim, asg_fit_settings(q, true));
+  auto t2 = std::chrono::steady_clock::now();
+  if (progress) progress(stage, 1.0);
+  out.rays = sim.rays;
+  out.sim_seconds = std::chrono::duration<double>(t1 - t0).count();
+  out.fit_seconds = std::chrono::duration<double>(t2 - t1).count();
+  return out;
+}
+
+Image asg_nodes_image(const AsgTable& t) {
+  const int rows = t.node_rows(), cols = t.node_cols(), L = t.lobes;
+  Image img(cols * L * 2, rows, 4);
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < cols; ++j)
+      for (int l = 0; l < L; ++l) {
+        const AsgLobe& q = t.node(i, j, l);
+        float* a = img.px(2 * (j * L + l), i);
+        float* b = img.px(2 * (j * L + l) + 1, i);
+        a[0] = float(q.theta_z), a[1] = float(q.phi_z), a[2] = float(q.phi_xy), a[3] = float(q.mu1);
+        b[0] = float(q.mu2), b[1] = float(q.c), b[2] = 0, b[3] = 0;
+      }
+  return img;
+}
+
+Image asg_scale_image(const AsgTable& t) {
+  const int Mb = int(t.theta_i.size() / 2), Nb = int(t.h.size() / 2), K = int(t.sigmas.size()),
+            L = t.lobes;
+  Image img(Nb * L, Mb * K, 1);
+  for (int bm = 0; bm < Mb; ++bm)
+    for (int bn = 0; bn < Nb; ++bn)
+      for (int k = 0; k < K; ++k)
+        for (int l = 0; l < L; ++l)
+          img.px(bn * L + l, bm * K + k)[0] =
+              float(t.scale[size_t(((bm * Nb + bn) * K + k) * L + l)]);
+  return img;
+}
+
+namespace {
+json grid_json(const std::vector<double>& g) {
+  return {{"min", g.front()}, {"max", g.back()}, {"count", g.size()}};
+}
+json table_json(const AsgTable& t) {
+  return {{"lobes", t.lobes},
+          {"theta_i", grid_json(t.theta_i)},
+          {"h", grid_json(t.h)},
+          {"sigma_per_mm", t.sigmas},
+          {"nrmse", t.nrmse},
+          {"nrmse_per_sigma", t.nrmse_per_sigma},
+          {"block_nrmse", t.block_nrmse}};
+}
+std::vector<double> grid_from(const json& g, const std::string& what) {
+  if (!g.is_object() || !g.contains("min") || !g.contains("max") || !g.contains("count") ||
+      !g["min"].is_number() || !g["max"].is_number() || !g["count"].is_number_unsigned())
+    throw std::runtime_error(what + ": expected {min, max, count}");
+  const double lo = g["min"], hi = g["max"];
+  const size_t n = g["count"];
+  if (n < 3 || n % 2 == 0 || n > 4097 || !(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi))
+    throw std::runtime_error(what + ": count must be odd and in [3, 4097], min < max");
+  std::vector<double> v;
+  for (size_t i = 0; i < n; ++i) v.push_back(lo + (hi - lo) * double(i) / double(n - 1));
+  return v;
+}
+}  // namespace
+
+json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
+  return {{"yarn", yarn},
+          {"high", table_json(t.high)},
+          {"refl", table_json(t.refl)},
+          {"files",
+           {{"high", "ply_high_" + yarn},
+            {"high_scale", "ply_high_scale_" + yarn},
+            {"refl", "ply_refl_" + yarn}}},
+          {"simulation",
+           {{"rays", t.rays},
+            {"rays_per_slice", t.sim.rays_per_slice},
+            {"theta_o_bins", t.sim.theta_o_count},
+            {"phi_o_bins", t.sim.phi_o_count},
+            {"seed", t.sim.seed},
+            {"seconds", t.sim_seconds}}},
+          {"fit_seconds", t.fit_seconds}};
+}
+
+AsgTable asg_table_from_images(const json& entry, const std::string& which, const Image& nodes,
+                               const Image* scale) {
+  if (!entry.is_object() || !entry.contains(which) || !entry[which].is_object())
+    throw std::runtime_error(fmt::format("raywave table entry has no \"{}\"", which));
+  const json& j = entry[which];
+  AsgTable t;
+  if (!j.contains("lobes") || !j["lobes"].is_number_unsigned() || j["lobes"] < 1 || j["lobes"] > 64)
+    throw std::runtime_error(which + ".lobes: expected an integer in [1, 64]");
+  t.lobes = j["lobes"];
+  t.theta_i = grid_from(j.value("theta_i", json()), which + ".theta_i");
+  t.h = grid_from(j.value("h", json()), which + ".h");
+  if (!j.contains("sigma_per_mm") || !j["sigma_per_mm"].is_array() || j["sigma_per_mm"].empty())
+    throw std::runtime_error(which + ".sigma_per_mm: expected a non-empty array");
+  for (auto& s : j["sigma_per_mm"]) {
+    if (!s.is_number() || !std::isfinite(s.get<double>()) || s.get<double>() < 0)
+      throw std::runtime_error(which + ".sigma_per_mm: expected finite numbers >= 0");
+    t.sigmas.push_back(s.get<double>());
+  }
+  for (size_t k = 1; k < t.sigmas.size(); ++k)
+    if (!(t.sigmas[k] > t.sigmas[k - 1]))
+      throw std::runtime_error(which + ".sigma_per_mm: must increase");
+  t.nrmse = j.value("nrmse", 0.0);
+  const int rows = t.node_rows(), cols = t.node_cols(), L = t.lobes;
+  if (nodes.width != cols * L * 2 || nodes.height != rows || nodes.channels != 4)
+    throw std::runtime_error(fmt::format("{} nodes: image is {}x{}x{}, the grids say {}x{}x4",
+                                         which, nodes.width, nodes.height, nodes.channels,
+                                         cols * L * 2, rows));
+  for (int i = 0; i < rows; ++i)
+    for (int jj = 0; jj < cols; ++jj)
+      for (int l = 0; l < L; ++l) {
+        const float* a = nodes.px(2 * (jj * L + l), i);
+        const float* b = nodes.px(2 * (jj * L + l) + 1, i);
+        t.nodes.push_back(AsgLobe{a[0], a[1], a[2], a[3], b[0], b[1]});
+      }
+  const int Mb = rows - 1, Nb = cols - 1, K = int(t.sigmas.size());
+  t.scale.assign(size_t(Mb * Nb * K * L), 1.0);
+  if (scale) {
+    if (scale->width != Nb * L || scale->height != Mb * K || scale->channels != 1)
+      throw std::runtime_error(fmt::format("{} scale-downs: image is {}x{}x{}, expected {}x{}x1",
+                                           which, scale->width, scale->height, scale->channels,
+                                           Nb * L, Mb * K));
+    for (int bm = 0; bm < Mb; ++bm)
+      for (int bn = 0; bn < Nb; ++bn)
+        for (int k = 0; k < K; ++k)
+          for (int l = 0; l < L; ++l)
+            t.scale[size_t(((bm * Nb + bn) * K + k) * L + l)] = scale->px(bn * L + l, bm * K + k)[0];
+  } else if (K != 1) {
+    throw std::runtime_error(which + ": several absorption levels but no scale-downs");
+  }
+  for (const AsgLobe& q : t.nodes)
+    for (double v : {q.theta_z, q.phi_z, q.phi_xy, q.mu1, q.mu2, q.c})
+      if (!std::isfinite(v)) throw std::runtime_error(which + " nodes: non-finite lobe parameter");
+  return t;
+}
+
+LoadedPlyTables load_ply_tables(const Atlas& a, const std::string& yarn) {
+  const json& m = a.manifest;
+  if (m.value("tier", "") != "raywave" || !m.contains("raywave"))
+    throw std::runtime_error(fmt::format("the atlas is a \"{}\" atlas and has no ray-wave tables "
+                                         "(bake the spec with \"model\": {{\"tier\": \"raywave\"}})",
+                                         m.value("tier", "?")));
+  LoadedPlyTables out;
+  out.entry = m["raywave"]["yarns"].value(yarn, json());
+  if (!out.entry.is_object())
+    throw std::runtime_error(fmt::format("raywave.yarns.{}: missing", yarn));
+  const json& f = out.entry["files"];
+  const Image& scale = a.map(f["high_scale"].get<std::string>());
+  out.high = asg_table_from_images(out.entry, "high", a.map(f["high"].get<std::string>()), &scale);
+  out.refl = asg_table_from_images(out.entry, "refl", a.map(f["refl"].get<std::string>()), nullptr);
+  return out;
+}
+
+}  // namespace loom

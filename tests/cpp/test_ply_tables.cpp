@@ -1,0 +1,132 @@
+// Ray-wave atlases: the ply tables round-trip through the atlas exactly as fitted, the raywave
+// probe answers with the table's value and the bake's own simulation (--raw), and validation
+// rejects a ray-wave manifest without its tables.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <fstream>
+
+#include "loom/ply_tables.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  fs::path p = fs::temp_directory_path() / ("loom_test_rw_" + std::to_string(getpid())) / name;
+  fs::remove_all(p);
+  fs::create_directories(p.parent_path());
+  return p;
+}
+
+loom::FabricSpec raywave_draft() {
+  auto d = loom::preset("plain");
+  d["model"]["tier"] = "raywave";
+  d["weft"]["ior"] = 1.46;  // weft differs from warp: two sets of tables
+  auto r = loom::parse_spec(d, "draft");
+  EXPECT_TRUE(r.ok());
+  return r.spec;
+}
+
+const fs::path& raywave_atlas() {
+  static fs::path dir = [] {
+    fs::path d = scratch("raywave.atlas");
+    loom::bake_atlas(raywave_draft(), d, {});
+    return d;
+  }();
+  return dir;
+}
+
+int run(const std::string& cmd, std::string* out) {
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string s;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) s.append(buf, n);
+  int st = pclose(p);
+  *out = s;
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+}  // namespace
+
+TEST(PlyTables, AtlasHoldsTheFittedTablesExactly) {
+  const auto& dir = raywave_atlas();
+  json m;
+  auto errors = loom::validate_atlas(dir, &m);
+  ASSERT_TRUE(errors.empty()) << errors[0];
+  EXPECT_EQ(m["tier"], "raywave");
+  auto atlas = loom::load_atlas(dir);
+  auto spec = raywave_draft();
+  for (const char* yarn : {"warp", "weft"}) {
+    auto t = loom::load_ply_tables(atlas, yarn);
+    // The bake is deterministic: re-simulating and re-fitting gives the same tables, and the
+    // atlas stores them (as float32) without loss beyond float rounding.
+    auto ref = loom::bake_ply_tables(std::string(yarn) == "warp" ? spec.warp : spec.weft,
+                                     loom::Quality::Draft);
+    ASSERT_EQ(t.high.nodes.size(), ref.high.nodes.size());
+    for (size_t i = 0; i < t.high.nodes.size(); ++i) {
+      EXPECT_FLOAT_EQ(float(t.high.nodes[i].mu1), float(ref.high.nodes[i].mu1));
+      EXPECT_FLOAT_EQ(float(t.high.nodes[i].phi_z), float(ref.high.nodes[i].phi_z));
+      EXPECT_FLOAT_EQ(float(t.high.nodes[i].c), float(ref.high.nodes[i].c));
+    }
+    ASSERT_EQ(t.high.scale.size(), ref.high.scale.size());
+    for (size_t i = 0; i < t.high.scale.size(); ++i)
+      EXPECT_FLOAT_EQ(float(t.high.scale[i]), float(ref.high.scale[i]));
+    EXPECT_EQ(t.refl.lobes, ref.refl.lobes);
+    EXPECT_EQ(t.high.sigmas, ref.high.sigmas);
+  }
+  // The weft (other IOR) has its own tables.
+  EXPECT_NE(m["raywave"]["yarns"]["warp"]["files"]["high"], m["raywave"]["yarns"]["weft"]["files"]["high"]);
+}
+
+TEST(PlyTables, RaywaveProbeAnswersFromTablesAndSimulation) {
+  const auto& dir = raywave_atlas();
+  auto atlas = loom::load_atlas(dir);
+  auto t = loom::load_ply_tables(atlas, "warp");
+  std::string out;
+  // A grid point (theta_i node 0 is -80 deg, h node 3 of 7 is 0) and a forward direction.
+  const double th = t.high.theta_i[2] * 180 / M_PI;
+  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval raywave --atlas " + dir.string() +
+                    " --theta-i " + std::to_string(th) + " --h 0 --sigma 20 --wo 0,-1,-0.2 --raw",
+                &out),
+            0)
+      << out;
+  json j = json::parse(out);
+  loom::Vec3d w{0, -1 / std::sqrt(1.04), -0.2 / std::sqrt(1.04)};
+  EXPECT_NEAR(j["high"].get<double>(), loom::asg_table_eval(t.high, th * M_PI / 180, 0, 20, w), 1e-6);
+  EXPECT_NEAR(j["refl"].get<double>(), loom::asg_table_eval(t.refl, th * M_PI / 180, 0, 0, w), 1e-6);
+  EXPECT_NEAR(j["raw"]["h"].get<double>(), 0.0, 1e-12);
+  EXPECT_GE(j["raw"]["value"].get<double>(), 0.0);
+  // A surface atlas has no tables: a clear error, non-zero exit.
+  fs::path surf = scratch("surface.atlas");
+  auto r = loom::parse_spec(loom::preset("plain"), "draft");
+  loom::bake_atlas(r.spec, surf, {});
+  EXPECT_NE(run(std::string(LOOM_BAKE_EXE) + " eval raywave --atlas " + surf.string() +
+                    " --theta-i 0 --h 0 --wo 0,1,0 2>&1",
+                &out),
+            0);
+  EXPECT_NE(out.find("no ray-wave tables"), std::string::npos) << out;
+}
+
+TEST(PlyTables, ValidationRejectsARaywaveManifestWithoutTables) {
+  fs::path d = scratch("broken.atlas");
+  fs::copy(raywave_atlas(), d);
+  json m;
+  {
+    std::ifstream in(d / "manifest.json");
+    m = json::parse(in);
+  }
+  m["raywave"]["yarns"]["weft"]["files"]["high"] = "../../etc/passwd";
+  m["raywave"]["yarns"].erase("warp");
+  {
+    std::ofstream out(d / "manifest.json");
+    out << m.dump(2);
+  }
+  auto errors = loom::validate_atlas(d);
+  ASSERT_EQ(errors.size(), 2u);
+  EXPECT_NE(errors[0].find("raywave.yarns.warp"), std::string::npos) << errors[0];
+  EXPECT_NE(errors[1].find("raywave.yarns.weft.files.high"), std::string::npos) << errors[1];
+}
