@@ -90,14 +90,21 @@ class SliceCost final : public ceres::CostFunction {
       for (int i = 0; i < kQ * L_; ++i) q[size_t(i)] += w_[c] * params[c][i];
     const int P = kQ * L_;
     std::vector<double> grad(static_cast<size_t>(P));
+    std::vector<float> trig(size_t(6 * L_));  // sin, cos of theta_z, phi_z, phi_xy per lobe
+    for (int l = 0; l < L_; ++l)
+      for (int i = 0; i < 3; ++i) {
+        trig[size_t(6 * l + 2 * i)] = float(std::sin(q[size_t(kQ * l + i)]));
+        trig[size_t(6 * l + 2 * i + 1)] = float(std::cos(q[size_t(kQ * l + i)]));
+      }
     for (size_t b = 0; b < g_.bins(); ++b) {
       const double sw = std::sqrt(g_.weight[b]);
       double sum = 0;
       for (int l = 0; l < L_; ++l) {
         const double* ql = &q[size_t(kQ * l)];
+        const float* tr = &trig[size_t(6 * l)];
         sh::vec3 ga, gs;
-        sum += sh::asg_eval_grad(float(ql[0]), float(ql[1]), float(ql[2]), float(ql[3]),
-                                 float(ql[4]), float(ql[5]), g_.dir[b], ga, gs);
+        sum += sh::asg_eval_grad_trig(tr[0], tr[1], tr[2], tr[3], tr[4], tr[5], float(ql[3]),
+                                      float(ql[4]), float(ql[5]), g_.dir[b], ga, gs);
         double* gl = &grad[size_t(kQ * l)];
         gl[0] = ga.x, gl[1] = ga.y, gl[2] = ga.z, gl[3] = gs.x, gl[4] = gs.y, gl[5] = gs.z;
       }

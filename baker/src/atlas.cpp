@@ -21,6 +21,7 @@
 
 #include "loom/albedo_lut.h"
 #include "loom/colour.h"
+#include "loom/double_layer.h"
 #include "loom/ply_tables.h"
 
 namespace fs = std::filesystem;
@@ -274,6 +275,15 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
                                          yarn, f));
         }
       }
+      const json& dl = m["raywave"].value("double_layer", json());
+      for (const char* f : {"front", "back"}) {
+        const json& name = dl.is_object() && dl.contains("files") && dl["files"].is_object()
+                               ? dl["files"].value(f, json())
+                               : json();
+        if (!name.is_string() || !tex.contains(name.get<std::string>()))
+          errors.push_back(fmt::format("raywave.double_layer.files.{}: not a texture of the atlas",
+                                       f));
+      }
     }
   }
   if (manifest_out) *manifest_out = m;
@@ -363,10 +373,31 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}};
     json raywave;
     if (spec.tier == Tier::Raywave) {
-      raywave = {{"status", "ply tables (single ply, Eq. S.1-S.12) baked; multi-ply, double-layer, "
-                            "diffraction, noise and shading are not yet"},
+      raywave = {{"status", "ply tables (single ply, Eq. S.1-S.12) and double-layer factors "
+                            "(S.20) baked; multi-ply, diffraction, noise and shading are not yet"},
                  {"yarns", json::object()}};
       const json canon_warp = canon["warp"], canon_weft = canon["weft"];
+      std::optional<PlyTables> yarn_tables[2];
+      auto add_table = [&](const Image& img, const std::string& name,
+                           std::vector<std::string> channels, const std::string& what) {
+        write_map(img, tmp, name, false, "clamp", channels);
+        json range = json::array();
+        for (int c = 0; c < img.channels; ++c) {
+          float lo = INFINITY, hi = -INFINITY;
+          for (size_t i = size_t(c); i < img.data.size(); i += size_t(img.channels))
+            lo = std::min(lo, img.data[i]), hi = std::max(hi, img.data[i]);
+          range.push_back({lo, hi});
+        }
+        textures[name] = {{"file", name + ".tx"},
+                          {"node_file", name + ".exr"},
+                          {"channels", channels},
+                          {"range", range},
+                          {"units", std::vector<std::string>(channels.size(), "")},
+                          {"format", "float"},
+                          {"size", {img.width, img.height}},
+                          {"tiling", "clamp"},
+                          {"description", what}};
+      };
       for (const char* yarn : {"warp", "weft"}) {
         const bool weft_same = std::string(yarn) == "weft" && canon_weft == canon_warp;
         if (weft_same) {
@@ -376,38 +407,57 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           continue;
         }
         const YarnSpec& y = std::string(yarn) == "warp" ? spec.warp : spec.weft;
-        PlyTables pt = bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn);
+        PlyTables& pt = yarn_tables[std::string(yarn) == "warp" ? 0 : 1].emplace(
+            bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn));
         json entry = ply_tables_manifest(pt, yarn);
-        auto add_table = [&](const Image& img, const std::string& name,
-                             std::vector<std::string> channels, const std::string& what) {
-          write_map(img, tmp, name, false, "clamp", channels);
-          json range = json::array();
-          for (int c = 0; c < img.channels; ++c) {
-            float lo = INFINITY, hi = -INFINITY;
-            for (size_t i = size_t(c); i < img.data.size(); i += size_t(img.channels))
-              lo = std::min(lo, img.data[i]), hi = std::max(hi, img.data[i]);
-            range.push_back({lo, hi});
-          }
-          textures[name] = {{"file", name + ".tx"},
-                            {"node_file", name + ".exr"},
-                            {"channels", channels},
-                            {"range", range},
-                            {"units", std::vector<std::string>(channels.size(), "")},
-                            {"format", "float"},
-                            {"size", {img.width, img.height}},
-                            {"tiling", "clamp"},
-                            {"description", what + " (layout: baker/include/loom/ply_tables.h)"}};
-        };
         add_table(asg_nodes_image(pt.high), entry["files"]["high"],
                   {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                  "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes");
+                  "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                  "(layout: baker/include/loom/ply_tables.h)");
         add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
-                  "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k");
+                  "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k "
+                  "(layout: baker/include/loom/ply_tables.h)");
         add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
                   {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                  "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes");
+                  "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                  "(layout: baker/include/loom/ply_tables.h)");
         raywave["yarns"][yarn] = entry;
       }
+      // Double-layer factors (Eq. S.20): warp over weft seen from the front, weft over warp
+      // from the back.
+      const PlySimResult& warp_sim = yarn_tables[0]->raw;
+      const PlySimResult& weft_sim = yarn_tables[1] ? yarn_tables[1]->raw : warp_sim;
+      const Layer warp_layer{&warp_sim, {1, 0, 0}}, weft_layer{&weft_sim, {0, 1, 0}};
+      const DoubleLayerSettings dls = double_layer_settings(spec.quality);
+      json dl = {{"theta_count", dls.theta_count},
+                 {"phi_count", dls.phi_count},
+                 {"sigma_per_mm", warp_sim.settings.sigmas},
+                 {"blend", spec.double_layer_blend},
+                 {"files", {{"front", "double_layer_front"}, {"back", "double_layer_back"}}},
+                 {"layout",
+                  "B_t, F_t, B_total, F_total (Eq. S.20) per direction xi towards the light: "
+                  "column p at azimuth (p + 0.5) 360 / phi_count deg, row k theta_count + t at "
+                  "level sigma_k and angle from the normal (t + 0.5) 90 / theta_count deg; the "
+                  "back table takes xi mirrored to +z"}};
+      if (opt.progress) opt.progress("double layer", 0.0);
+      for (int side = 0; side < 2; ++side) {
+        DoubleLayerTable t = side == 0 ? double_layer_table(warp_layer, weft_layer, dls)
+                                       : double_layer_table(weft_layer, warp_layer, dls);
+        const int K = int(t.values.size()) / (dls.theta_count * dls.phi_count);
+        Image img(dls.phi_count, dls.theta_count * K, 4);
+        for (int row = 0; row < dls.theta_count * K; ++row)
+          for (int c = 0; c < dls.phi_count; ++c) {
+            const DoubleLayerFactors& f = t.values[size_t(row * dls.phi_count + c)];
+            float* px = img.px(c, row);
+            px[0] = float(f.Bt), px[1] = float(f.Ft), px[2] = float(f.Btotal), px[3] = float(f.Ftotal);
+          }
+        add_table(img, side == 0 ? "double_layer_front" : "double_layer_back",
+                  {"B_t", "F_t", "B_total", "F_total"},
+                  "double-layer reflection and transmission factors (layout: manifest "
+                  "raywave.double_layer.layout)");
+        if (opt.progress) opt.progress("double layer", 0.5 * (side + 1));
+      }
+      raywave["double_layer"] = dl;
     }
     for (auto& [name, t] : textures.items()) {
       t["sha256"] = sha256_file(tmp / t["file"].get<std::string>());

@@ -24,6 +24,7 @@ PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progre
   auto t2 = std::chrono::steady_clock::now();
   if (progress) progress(stage, 1.0);
   out.rays = sim.rays;
+  out.raw = std::move(sim);
   out.sim_seconds = std::chrono::duration<double>(t1 - t0).count();
   out.fit_seconds = std::chrono::duration<double>(t2 - t1).count();
   return out;

@@ -375,6 +375,7 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
                                    : Quality::Preview;
     s.optical_thickness = m.number("optical_thickness", s.optical_thickness, 0.01, 100, "");
     s.diffuse_blend = m.number("diffuse_blend", s.diffuse_blend, 0, 1, "");
+    s.double_layer_blend = m.number("double_layer_blend", s.double_layer_blend, 0, 1, "");
     m.reject_unknown();
   }
   {
@@ -510,7 +511,8 @@ json canonical_spec(const FabricSpec& s) {
                {{"tier", to_string(s.tier)},
                 {"quality", to_string(s.quality)},
                 {"optical_thickness", s.optical_thickness},
-                {"diffuse_blend", s.diffuse_blend}}},
+                {"diffuse_blend", s.diffuse_blend},
+                {"double_layer_blend", s.double_layer_blend}}},
               {"components",
                {{"transmission", s.components.transmission},
                 {"gaps", s.components.gaps},

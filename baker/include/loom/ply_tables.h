@@ -24,6 +24,7 @@ namespace loom {
 
 struct PlyTables {
   AsgTable high, refl;
+  PlySimResult raw;  ///< the simulation the tables were fitted to (double-layer factors use it)
   PlySimSettings sim;
   uint64_t rays = 0;
   double sim_seconds = 0, fit_seconds = 0;

@@ -78,6 +78,9 @@ struct FabricSpec {
   Quality quality = Quality::Preview;
   double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
   double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]
+  /// s of the ray-wave supplement's Eq. S.22: the share of double-layer transmission that turns
+  /// diffuse, [0, 1]. The text gives no value; 0.5 splits evenly.
+  double double_layer_blend = 0.5;
   ComponentSpec components;
   PerlinSpec perlin;
 };

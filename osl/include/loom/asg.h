@@ -79,15 +79,16 @@ LOOM_FN float asg_integral(float mu1_in, float mu2_in, float c) {
 }
 
 /// Eq. S.1 and its gradient with respect to the six parameters (theta_z, phi_z, phi_xy, mu1,
-/// mu2, c), for the fitter. Uses dz/dtheta = y0, dz/dphi = cos(theta) x0, dx0/dphi = e,
+/// mu2, c), for the fitter, from the lobe's precomputed trigonometry (st, ct = sin, cos theta_z;
+/// sp, cp of phi_z; sa, ca of phi_xy), so that a fit evaluating one lobe at many directions pays
+/// for it once. Uses dz/dtheta = y0, dz/dphi = cos(theta) x0, dx0/dphi = e,
 /// dy0/dtheta = -z, dy0/dphi = -sin(theta) x0 with e = (-cos phi, -sin phi, 0), dx/dphi_xy = -y,
 /// dy/dphi_xy = x. The gradient of the max() is taken as 0 where v.z <= 0.
-LOOM_FN float asg_eval_grad(float theta_z, float phi_z, float phi_xy, float mu1, float mu2,
-                            float c, vector v, LOOM_OUT(vector) g_angles,
-                            LOOM_OUT(vector) g_shape) {
+LOOM_FN float asg_eval_grad_trig(float st, float ct, float sp, float cp, float sa, float ca,
+                                 float mu1, float mu2, float c, vector v,
+                                 LOOM_OUT(vector) g_angles, LOOM_OUT(vector) g_shape) {
   g_angles = vector(0.0);
   g_shape = vector(0.0);
-  float st = sin(theta_z), ct = cos(theta_z), sp = sin(phi_z), cp = cos(phi_z);
   vector z = vector(ct * cp, ct * sp, st);
   float vz = dot(v, z);
   if (!(vz > 0.0))
@@ -95,7 +96,6 @@ LOOM_FN float asg_eval_grad(float theta_z, float phi_z, float phi_xy, float mu1,
   vector x0 = vector(-sp, cp, 0.0);
   vector y0 = vector(-st * cp, -st * sp, ct);
   vector e = vector(-cp, -sp, 0.0);
-  float sa = sin(phi_xy), ca = cos(phi_xy);
   vector x = ca * x0 - sa * y0;
   vector y = sa * x0 + ca * y0;
   float vx = dot(v, x), vy = dot(v, y);
@@ -115,6 +115,14 @@ LOOM_FN float asg_eval_grad(float theta_z, float phi_z, float phi_xy, float mu1,
                     val * dexp_a);
   g_shape = vector(-val * vx * vx, -val * vy * vy, vz * ex);
   return val;
+}
+
+/// Eq. S.1 and its gradient (see asg_eval_grad_trig) from the six parameters.
+LOOM_FN float asg_eval_grad(float theta_z, float phi_z, float phi_xy, float mu1, float mu2,
+                            float c, vector v, LOOM_OUT(vector) g_angles,
+                            LOOM_OUT(vector) g_shape) {
+  return asg_eval_grad_trig(sin(theta_z), cos(theta_z), sin(phi_z), cos(phi_z), sin(phi_xy),
+                            cos(phi_xy), mu1, mu2, c, v, g_angles, g_shape);
 }
 
 #endif
