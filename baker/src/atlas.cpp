@@ -373,8 +373,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}};
     json raywave;
     if (spec.tier == Tier::Raywave) {
-      raywave = {{"status", "ply tables (single ply, Eq. S.1-S.12) and double-layer factors "
-                            "(S.20) baked; multi-ply, diffraction, noise and shading are not yet"},
+      raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
+                            "factors (S.20) baked; diffraction, noise and shading are not yet"},
                  {"yarns", json::object()}};
       const json canon_warp = canon["warp"], canon_weft = canon["weft"];
       std::optional<PlyTables> yarn_tables[2];

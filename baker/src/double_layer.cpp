@@ -9,16 +9,6 @@
 namespace loom {
 namespace {
 
-Vec3d add(Vec3d a, Vec3d b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3d mul(Vec3d a, double s) { return {a.x * s, a.y * s, a.z * s}; }
-double dot(Vec3d a, Vec3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3d cross(Vec3d a, Vec3d b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-Vec3d normalize(Vec3d a) {
-  double l = std::sqrt(dot(a, a));
-  return l > 0 ? mul(a, 1 / l) : Vec3d{0, 0, 1};
-}
 
 /// The layer's h-averaged outgoing energies per simulated theta_i sample and level, weighted by
 /// bin solid angle (so they are energies, not densities), and the unscattered fractions.
@@ -67,11 +57,11 @@ class LayerModel {
   LayerModel(const Layer& l) : layer_(l), data_(layer_data(*l.sim)) {}
 
   void scatter(const Vec3d& xi_in, int k, const std::function<void(const Vec3d&, double)>& out) const {
-    const Vec3d a = normalize(layer_.axis), xi = normalize(xi_in);
+    const Vec3d a = normalized(layer_.axis), xi = normalized(xi_in);
     const double s = std::clamp(dot(xi, a), -1.0, 1.0);
-    Vec3d yp = add(xi, mul(a, -s));
+    Vec3d yp = xi - a * s;
     if (dot(yp, yp) < 1e-18) yp = std::fabs(a.z) < 0.9 ? Vec3d{0, 0, 1} : Vec3d{1, 0, 0};
-    yp = normalize(add(yp, mul(a, -dot(yp, a))));
+    yp = normalized(yp - a * dot(yp, a));
     const Vec3d xp = cross(yp, a);
     const std::vector<double>& g = layer_.sim->theta_i;
     double u = (std::asin(s) - g.front()) / (g.back() - g.front()) * (data_.M - 1);
@@ -85,11 +75,11 @@ class LayerModel {
       const double e = w0 * e0[b] + w1 * e1[b];
       if (e <= 0) continue;
       const Vec3d& d = data_.dir[b];
-      out(add(add(mul(xp, d.x), mul(yp, d.y)), mul(a, d.z)), e);
+      out(xp * d.x + yp * d.y + a * d.z, e);
     }
     const double un = w0 * data_.unscattered[size_t(k * data_.M + m0)] +
                       w1 * data_.unscattered[size_t(k * data_.M + m1)];
-    if (un > 0) out(mul(xi, -1), un);
+    if (un > 0) out(xi * -1, un);
   }
 
   /// Backward (same side as xi) and forward energies for light from xi.
@@ -161,7 +151,7 @@ DoubleLayerFactors factors(const LayerModel& top, const LayerModel& bottom, cons
     } else if (d.z < 0) {
       f.Ft += e;
       // The bottom layer lit from -d (towards the top layer, +z side).
-      auto [R, T] = bottom.hemisphere(mul(d, -1), k);
+      auto [R, T] = bottom.hemisphere(d * -1, k);
       f.Bb += e * R;
       f.Fb += e * T;
     } else {
@@ -262,7 +252,7 @@ std::pair<double, double> double_layer_brute_force(const Layer& top, const Layer
       const double w = down[size_t(id)];
       Vec3d d = centre(id);
       if (d.z >= 0) d.z = -1e-6;  // a cell on the equator still travels down
-      b.scatter(mul(d, -1), k, [&](const Vec3d& d2, double e) {
+      b.scatter(d * -1, k, [&](const Vec3d& d2, double e) {
         if (d2.z < 0) F += w * e;
         else up[size_t(cell(d2))] += w * e;
       });
@@ -274,7 +264,7 @@ std::pair<double, double> double_layer_brute_force(const Layer& top, const Layer
       const double w = up[size_t(id)];
       Vec3d d = centre(id);
       if (d.z <= 0) d.z = 1e-6;
-      t.scatter(mul(d, -1), k, [&](const Vec3d& d2, double e) {
+      t.scatter(d * -1, k, [&](const Vec3d& d2, double e) {
         if (d2.z > 0) B += w * e;
         else down[size_t(cell(d2))] += w * e, between += w * e;
       });

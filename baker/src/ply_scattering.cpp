@@ -9,15 +9,6 @@
 namespace loom {
 namespace {
 
-Vec3d operator+(Vec3d a, Vec3d b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3d operator-(Vec3d a, Vec3d b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-Vec3d operator*(Vec3d a, double s) { return {a.x * s, a.y * s, a.z * s}; }
-double dot(Vec3d a, Vec3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3d normalized(Vec3d a) {
-  double l = std::sqrt(dot(a, a));
-  return l > 0 ? a * (1 / l) : Vec3d{0, 0, 1};
-}
-
 int64_t floor_div(int64_t a, int64_t b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0))); }
 
 /// Fresnel reflectance of unpolarised light at a smooth interface, cos_i > 0 on the incident
@@ -439,6 +430,7 @@ PlySimResult simulate_ply_scattering(const PlyParams& p, double ior, const PlySi
     res.slices[i] = simulate_ply_slice(g, ior, s, res.theta_i[m], res.h[n], i);
   });
   res.rays = uint64_t(count) * uint64_t(s.rays_per_slice);
+  res.silhouette_radius_um = g.bound_radius();
   return res;
 }
 

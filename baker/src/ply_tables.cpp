@@ -1,5 +1,7 @@
 #include "loom/ply_tables.h"
 
+#include "loom/multi_ply.h"
+
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
@@ -17,6 +19,10 @@ PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progre
   if (progress) progress(stage, 0.0);
   auto t0 = std::chrono::steady_clock::now();
   PlySimResult sim = simulate_ply_scattering(p, y.ior, out.sim);
+  if (y.plies > 1) {  // Eq. S.13-S.19; single-ply yarns skip it
+    out.multi = multi_ply_geometry(y, sim);
+    sim = multi_ply_scattering(sim, *out.multi);
+  }
   auto t1 = std::chrono::steady_clock::now();
   if (progress) progress(stage, 0.5);
   out.high = asg_fit_high(sim, asg_fit_settings(q, false));
@@ -99,8 +105,14 @@ json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
             {"theta_o_bins", t.sim.theta_o_count},
             {"phi_o_bins", t.sim.phi_o_count},
             {"seed", t.sim.seed},
-            {"seconds", t.sim_seconds}}},
-          {"fit_seconds", t.fit_seconds}};
+            {"seconds", t.sim_seconds},  // simulation, and multi-ply for yarns of several plies
+            {"includes_multi_ply", bool(t.multi)}}},
+          {"fit_seconds", t.fit_seconds},
+          {"multi_ply", t.multi ? json{{"plies", t.multi->plies},
+                                       {"centre_distance", t.multi->centre_distance},
+                                       {"twist_rad", t.multi->twist},
+                                       {"residual_width_rad", kResidualWidth}}
+                                : json(false)}};
 }
 
 AsgTable asg_table_from_images(const json& entry, const std::string& which, const Image& nodes,

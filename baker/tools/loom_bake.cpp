@@ -341,7 +341,10 @@ int main(int argc, char** argv) {
         const size_t bins = size_t(st.theta_o_count) * size_t(st.phi_o_count);
         const size_t b = size_t(bt) * size_t(st.phi_o_count) + size_t(bp);
         double raw_refl = sl.refl[b], raw_high = sl.high[(st.sigmas.size() - 1) * bins + b];
+        // The simulation of one ply; for a multi-ply yarn the tables hold the yarn's scattering
+        // (Eq. S.13), computed from every slice, so the two differ by the neighbours' effect.
         out["raw"] = {{"value", raw_refl + raw_high}, {"refl", raw_refl}, {"high", raw_high},
+                      {"model", y.plies > 1 ? "single ply (the tables are multi-ply)" : "single ply"},
                       {"theta_i_deg", t.high.theta_i[m] * 180 / M_PI}, {"h", t.high.h[hn]},
                       {"rays", st.rays_per_slice}};
       }

@@ -6,19 +6,12 @@
 #include <cmath>
 
 #include "loom/double_layer.h"
+#include "small_ply_sim.h"
 
 namespace {
 
 const loom::PlySimResult& sim() {
-  static loom::PlySimResult r = [] {
-    loom::YarnSpec y;
-    auto p = loom::ply_params_from_yarn(y);
-    loom::PlySimSettings s;
-    s.theta_i_count = 9, s.h_count = 5, s.theta_o_count = 24, s.phi_o_count = 48;
-    s.rays_per_slice = 3000;
-    s.sigmas = {0, 30, 300};
-    return loom::simulate_ply_scattering(p, y.ior, s);
-  }();
+  static const loom::PlySimResult r = loom::test::small_ply_sim(9, 5);
   return r;
 }
 

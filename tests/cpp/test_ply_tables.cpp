@@ -106,7 +106,8 @@ void raywave_probe_answers_from_tables_and_simulation() {
   auto t = loom::load_ply_tables(atlas, "warp");
   std::string out;
   // A grid point (theta_i node 0 is -80 deg, h node 3 of 7 is 0) and a forward direction.
-  const double th = t.high.theta_i[2] * 180 / M_PI;
+  // (The angle as printed, so that both sides evaluate the very same theta_i.)
+  const double th = std::stod(std::to_string(t.high.theta_i[2] * 180 / M_PI));
   ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval raywave --atlas " + dir.string() +
                     " --theta-i " + std::to_string(th) + " --h 0 --sigma 20 --wo 0,-1,-0.2 --raw",
                 &out),
@@ -117,6 +118,7 @@ void raywave_probe_answers_from_tables_and_simulation() {
   EXPECT_NEAR(j["high"].get<double>(), loom::asg_table_eval(t.high, th * M_PI / 180, 0, 20, w), 1e-6);
   EXPECT_NEAR(j["refl"].get<double>(), loom::asg_table_eval(t.refl, th * M_PI / 180, 0, 0, w), 1e-6);
   EXPECT_NEAR(j["raw"]["h"].get<double>(), 0.0, 1e-12);
+  EXPECT_NEAR(j["raw"]["theta_i_deg"].get<double>(), th, 1e-4);
   EXPECT_GE(j["raw"]["value"].get<double>(), 0.0);
   // A surface atlas has no tables: a clear error, non-zero exit.
   fs::path surf = scratch("surface.atlas");

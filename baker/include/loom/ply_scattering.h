@@ -72,6 +72,7 @@ struct PlySimResult {
   std::vector<double> theta_i, h;  ///< the grids (radians, normalised)
   std::vector<PlySimSlice> slices; ///< theta_i-major: slices[m * h_count + n]
   uint64_t rays = 0;
+  double silhouette_radius_um = 0;  ///< the length h = 1 stands for
   const PlySimSlice& slice(int m, int n) const { return slices[size_t(m) * h.size() + size_t(n)]; }
 };
 

@@ -13,10 +13,12 @@
 // manifest under "raywave". Identical warp and weft yarns share one set of files.
 #pragma once
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "loom/asg_fit.h"
 #include "loom/atlas.h"
+#include "loom/multi_ply.h"
 #include "loom/ply_maps.h"
 #include "loom/spec.h"
 
@@ -24,7 +26,10 @@ namespace loom {
 
 struct PlyTables {
   AsgTable high, refl;
-  PlySimResult raw;  ///< the simulation the tables were fitted to (double-layer factors use it)
+  /// What the tables were fitted to: the ply simulation, turned into the yarn's multi-ply
+  /// scattering (Eq. S.13) for yarns of several plies. The double-layer factors use it too.
+  PlySimResult raw;
+  std::optional<MultiPlyGeometry> multi;  ///< set for multi-ply yarns
   PlySimSettings sim;
   uint64_t rays = 0;
   double sim_seconds = 0, fit_seconds = 0;

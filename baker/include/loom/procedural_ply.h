@@ -12,6 +12,7 @@
 // a Kolmogorov-Smirnov distance of 0.41 against Eq. 3). Loom uses a counter-based generator
 // instead: SplitMix64 of the key, the same consistency without the correlation.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -72,6 +73,18 @@ std::vector<Fiber> make_ply_fibers(const PlyParams& p, uint32_t yarn, uint32_t p
 struct Vec3d {
   double x = 0, y = 0, z = 0;
 };
+inline Vec3d operator+(Vec3d a, Vec3d b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline Vec3d operator-(Vec3d a, Vec3d b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Vec3d operator*(Vec3d a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+inline double dot(Vec3d a, Vec3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec3d cross(Vec3d a, Vec3d b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+/// The unit vector along a, or +z for the zero vector.
+inline Vec3d normalized(Vec3d a) {
+  double l = std::sqrt(dot(a, a));
+  return l > 0 ? a * (1 / l) : Vec3d{0, 0, 1};
+}
 
 /// Eq. 2: the migrating radius R_j(z) in um (scaled by the ply radius).
 double fiber_radius_at(const PlyParams& p, const Fiber& f, double z);
