@@ -53,4 +53,17 @@ void BM_AsgFit(benchmark::State& st) {
 }
 BENCHMARK(BM_AsgFit)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 
+/// Fit error against the lobe count L on one simulation (the preview preset's grids).
+void BM_AsgFitLobes(benchmark::State& st) {
+  static const loom::PlySimResult sim = loom::simulate_ply_scattering(
+      default_ply(), 1.55, loom::ply_sim_settings(loom::Quality::Preview));
+  auto s = loom::asg_fit_settings(loom::Quality::Preview, false);
+  s.lobes = int(st.range(0));
+  double nrmse = 0;
+  for (auto _ : st) nrmse = loom::asg_fit_high(sim, s).nrmse;
+  st.counters["nrmse"] = nrmse;
+  st.SetLabel("L = " + std::to_string(s.lobes));
+}
+BENCHMARK(BM_AsgFitLobes)->DenseRange(1, 6)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
 }  // namespace

@@ -126,10 +126,18 @@ class SliceCost final : public ceres::CostFunction {
   int L_;
 };
 
+/// Bounds of a free parameter block. The azimuths stay within half a turn of their start
+/// (phi_z within pi, phi_xy within pi/2, its period): unbounded, an optimiser may move a corner's
+/// angle by whole turns, which leaves the fitted slices unchanged but makes S.7's bilinear
+/// interpolation sweep the lobe round the ply between them.
 void set_bounds(ceres::Problem& pb, double* q, int L, double mu_max, double c_max) {
   for (int l = 0; l < L; ++l) {
     pb.SetParameterLowerBound(q, kQ * l + 0, -M_PI / 2);
     pb.SetParameterUpperBound(q, kQ * l + 0, M_PI / 2);
+    pb.SetParameterLowerBound(q, kQ * l + 1, q[kQ * l + 1] - M_PI);
+    pb.SetParameterUpperBound(q, kQ * l + 1, q[kQ * l + 1] + M_PI);
+    pb.SetParameterLowerBound(q, kQ * l + 2, q[kQ * l + 2] - M_PI / 2);
+    pb.SetParameterUpperBound(q, kQ * l + 2, q[kQ * l + 2] + M_PI / 2);
     for (int i : {3, 4}) {
       pb.SetParameterLowerBound(q, kQ * l + i, 0.0);
       pb.SetParameterUpperBound(q, kQ * l + i, mu_max);

@@ -166,6 +166,14 @@ int main(int argc, char** argv) {
                     "also re-run the simulation of the nearest grid slice (identical to the "
                     "bake's: same seed) and print its value in the bin of --wo");
 
+  auto* tables = eval->add_subcommand(
+      "tables", "error of a ray-wave atlas's fitted ply scattering against another (e.g. the "
+                "reference preset's): relative L1 over the sphere");
+  std::string tables_atlas, tables_ref, tables_yarn = "warp";
+  tables->add_option("--atlas", tables_atlas, "ray-wave atlas to measure")->required();
+  tables->add_option("--reference", tables_ref, "ray-wave atlas to compare with")->required();
+  tables->add_option("--yarn", tables_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -297,6 +305,45 @@ int main(int argc, char** argv) {
                                float(q[5]), dir);
       float integral = sh::asg_integral(float(q[3]), float(q[4]), float(q[5]));
       std::cout << json{{"value", val}, {"integral", integral}}.dump() << std::endl;
+      return 0;
+    }
+    if (*tables) {
+      auto a = loom::load_atlas(tables_atlas), r = loom::load_atlas(tables_ref);
+      auto ta = loom::load_ply_tables(a, tables_yarn), tr = loom::load_ply_tables(r, tables_yarn);
+      // f = f_refl + f_high over 9 x 9 (theta_i, h) inside the grids, the reference's absorption
+      // levels, and a 32 x 64 (theta_o, phi_o) midpoint grid weighted by solid angle.
+      json per_sigma = json::array();
+      double num_all = 0, den_all = 0;
+      for (double sg : tr.high.sigmas) {
+        double num = 0, den = 0;
+        for (int i = 0; i < 9; ++i)
+          for (int j = 0; j < 9; ++j) {
+            const double th = tr.high.theta_i.front() +
+                              (tr.high.theta_i.back() - tr.high.theta_i.front()) * (i + 0.5) / 9;
+            const double h = -1 + 2 * (j + 0.5) / 9;
+            auto la = loom::asg_table_lobes(ta.high, th, h, sg), lr = loom::asg_table_lobes(tr.high, th, h, sg);
+            auto ra = loom::asg_table_lobes(ta.refl, th, h, 0), rr = loom::asg_table_lobes(tr.refl, th, h, 0);
+            for (int t = 0; t < 32; ++t) {
+              const double el = -M_PI / 2 + M_PI * (t + 0.5) / 32, w = std::cos(el);
+              for (int q = 0; q < 64; ++q) {
+                const double az = -M_PI + 2 * M_PI * (q + 0.5) / 64;
+                loom::Vec3d v{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+                const double fa = loom::asg_mixture_eval(la, v) + loom::asg_mixture_eval(ra, v);
+                const double fr = loom::asg_mixture_eval(lr, v) + loom::asg_mixture_eval(rr, v);
+                num += w * std::fabs(fa - fr);
+                den += w * std::fabs(fr);
+              }
+            }
+          }
+        per_sigma.push_back({{"sigma_per_mm", sg}, {"relative_l1", den > 0 ? num / den : 0.0}});
+        num_all += num, den_all += den;
+      }
+      std::cout << json{{"relative_l1", den_all > 0 ? num_all / den_all : 0.0},
+                        {"per_sigma", per_sigma},
+                        {"yarn", tables_yarn},
+                        {"lobes", {{"atlas", ta.high.lobes}, {"reference", tr.high.lobes}}}}
+                       .dump()
+                << std::endl;
       return 0;
     }
     if (*raywave) {

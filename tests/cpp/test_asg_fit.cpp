@@ -2,10 +2,12 @@
 // across block borders, monotone scale-downs, finite values at the extremes, on real data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "loom/asg_fit.h"
 #include "loom/shading.h"
+#include "lobe_paths.h"
 
 namespace {
 
@@ -144,6 +146,7 @@ TEST(AsgFit, RealPlyFitIsMonotoneInSigmaAndFiniteAtTheExtremes) {
         EXPECT_LE(a, b);
       }
     }
+  loom::test::expect_no_sweeping_lobes(t);
   // More lobes fit better (the objective is the same, the model strictly richer).
   auto one = loom::AsgFitSettings{};
   one.lobes = 1, one.max_iterations = 20;

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "loom/ply_tables.h"
+#include "lobe_paths.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -76,6 +77,8 @@ void atlas_holds_the_fitted_tables_exactly() {
     for (size_t i = 0; i < t.high.scale.size(); ++i)
       EXPECT_FLOAT_EQ(float(t.high.scale[i]), float(ref.high.scale[i]));
     EXPECT_EQ(t.refl.lobes, ref.refl.lobes);
+    loom::test::expect_no_sweeping_lobes(t.high);
+    loom::test::expect_no_sweeping_lobes(t.refl);
     EXPECT_EQ(t.high.sigmas, ref.high.sigmas);
   }
   // Double-layer factors, front and back: energies in [0, 1], the orderings of Eq. S.20, and
