@@ -449,7 +449,7 @@ AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return
 AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, true); }
 
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma) {
-  const int M = int(t.theta_i.size()), N = int(t.h.size()), L = t.lobes;
+  const int L = t.lobes;
   auto locate = [](const std::vector<double>& grid, double x, int& block, double& frac) {
     const int n = int(grid.size());
     double u = (std::clamp(x, grid.front(), grid.back()) - grid.front()) /
@@ -462,7 +462,6 @@ std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h
   double r, s;
   locate(t.theta_i, theta_i, bm, r);
   locate(t.h, h, bn, s);
-  (void)M, (void)N;
   // S.10: the absorption interval.
   const int K = int(t.sigmas.size());
   int k = 0;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 namespace loom {
@@ -56,6 +57,9 @@ class LayerModel {
  public:
   LayerModel(const Layer& l) : layer_(l), data_(layer_data(*l.sim)) {}
 
+  /// Scatter a unit beam from surface direction xi (towards the light) off the layer at level k:
+  /// out(direction of travel, energy) for every outgoing bin (h-averaged) and for the
+  /// unscattered forward delta. Energies sum to 1 - absorbed - truncated.
   void scatter(const Vec3d& xi_in, int k, const std::function<void(const Vec3d&, double)>& out) const {
     const Vec3d a = normalized(layer_.axis), xi = normalized(xi_in);
     const double s = std::clamp(dot(xi, a), -1.0, 1.0);
@@ -174,11 +178,6 @@ DoubleLayerFactors factors(const LayerModel& top, const LayerModel& bottom, cons
 constexpr int kHemiRows = 32, kHemiCols = 64;
 
 }  // namespace
-
-void layer_scatter(const Layer& layer, const Vec3d& xi, int k,
-                   const std::function<void(const Vec3d&, double)>& out) {
-  LayerModel(layer).scatter(xi, k, out);
-}
 
 DoubleLayerSettings double_layer_settings(Quality q) {
   switch (q) {

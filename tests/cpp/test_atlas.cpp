@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "loom/atlas.h"
+#include "test_util.h"
 #include "loom/evaluator.h"
 
 namespace fs = std::filesystem;
@@ -17,12 +18,8 @@ using nlohmann::json;
 
 namespace {
 
-fs::path scratch(const std::string& name) {
-  fs::path p = fs::temp_directory_path() / ("loom_test_" + std::to_string(getpid())) / name;
-  fs::remove_all(p);
-  fs::create_directories(p.parent_path());
-  return p;
-}
+using loom::test::run;
+using loom::test::scratch;
 
 loom::FabricSpec draft(const std::string& preset) {
   auto r = loom::parse_spec(loom::preset(preset), "draft");
@@ -40,16 +37,6 @@ const fs::path& plain_atlas() {
   return dir;
 }
 
-int run(const std::string& cmd, std::string* out = nullptr) {
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string s;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) s.append(buf, n);
-  int st = pclose(p);
-  if (out) *out = s;
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 fs::path copy_atlas(const std::string& name) {
   fs::path d = scratch(name);

@@ -2,25 +2,20 @@
 // probe answers with the table's value and the bake's own simulation (--raw), and validation
 // rejects a ray-wave manifest without its tables.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <cstdio>
 #include <fstream>
 
 #include "loom/ply_tables.h"
 #include "lobe_paths.h"
+#include "test_util.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
 
-fs::path scratch(const std::string& name) {
-  fs::path p = fs::temp_directory_path() / ("loom_test_rw_" + std::to_string(getpid())) / name;
-  fs::remove_all(p);
-  fs::create_directories(p.parent_path());
-  return p;
-}
+using loom::test::run;
+using loom::test::scratch;
 
 loom::FabricSpec raywave_draft() {
   auto d = loom::preset("plain");
@@ -40,16 +35,6 @@ const fs::path& raywave_atlas() {
   return dir;
 }
 
-int run(const std::string& cmd, std::string* out) {
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string s;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) s.append(buf, n);
-  int st = pclose(p);
-  *out = s;
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 }  // namespace
 

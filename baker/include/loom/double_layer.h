@@ -24,7 +24,6 @@
 //    on the ply colour), over theta of xi from the normal in [0, 90) and its azimuth in [0, 360).
 //  * The blend factor s of Eq. S.22 is the spec's model.double_layer_blend.
 #pragma once
-#include <functional>
 #include <vector>
 
 #include "loom/ply_scattering.h"
@@ -36,12 +35,6 @@ struct Layer {
   const PlySimResult* sim = nullptr;
   Vec3d axis{1, 0, 0};
 };
-
-/// Scatter a unit beam from surface direction xi (towards the light) off the layer at absorption
-/// level k: calls out(direction of travel, energy) for every outgoing bin (h-averaged) and for the
-/// unscattered forward delta. Energies sum to 1 - absorbed - truncated.
-void layer_scatter(const Layer& layer, const Vec3d& xi, int k,
-                   const std::function<void(const Vec3d&, double)>& out);
 
 struct DoubleLayerSettings {
   int theta_count = 16;  ///< bins of theta (from the normal) over [0, 90)

@@ -100,8 +100,6 @@ class PlyGeometry {
                       Hit& hit) const;
   double period() const { return period_; }
   double bound_radius() const { return bound_; }
-  double fiber_radius() const { return r_; }
-  size_t segment_count() const { return seg_.size(); }
 
  private:
   struct Segment {
