@@ -33,9 +33,14 @@ from dataclasses import dataclass, field
 
 QUALITIES = ("draft", "preview", "final", "reference")
 # Shown when loom-bake cannot be asked (not installed yet); `loom-bake presets` is the truth.
-# Same order as `loom-bake presets` (default, then alphabetical): Blender stores a dynamic enum
-# by index, so a different order would change a saved choice once loom-bake is found.
-FALLBACK_PRESETS = ("default", "basket", "plain", "satin", "twill")
+# Same order as `loom-bake presets` (default, the weaves alphabetically, then the measured sample
+# fabrics alphabetically): Blender stores a dynamic enum by index, so a different order would
+# change a saved choice once loom-bake is found. New presets are only ever appended.
+FALLBACK_PRESETS = (
+    "default", "basket", "plain", "satin", "twill",
+    "beige_silk_satin", "black_polyester_plain", "blue_cotton_satin", "cream_cotton_twill",
+    "gray_wool_twill", "orange_polyester_satin", "white_silk_organza",
+)
 DEFAULT_CACHE_DIR = os.path.join("~", ".cache", "loom", "atlases")
 
 

@@ -25,7 +25,7 @@ def _preset_items(self, context):
                 names = bakery.list_presets(exe) or names
             except bakery.LoomBakeError:
                 pass
-        items = [(n, n.capitalize(), f"loom-bake preset '{n}'") for n in names]
+        items = [(n, n.replace("_", " ").capitalize(), f"loom-bake preset '{n}'") for n in names]
         _preset_items_cache[key] = items
     return items
 

@@ -21,6 +21,7 @@
 
 #include "loom/albedo_lut.h"
 #include "loom/colour.h"
+#include "loom/diffraction_tables.h"
 #include "loom/double_layer.h"
 #include "loom/ply_tables.h"
 
@@ -284,6 +285,21 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           errors.push_back(fmt::format("raywave.double_layer.files.{}: not a texture of the atlas",
                                        f));
       }
+      // Diffraction: "tables" lists its files; "delta" (the non-wave variant) has none.
+      const json& dif = m["raywave"].value("diffraction", json());
+      const std::string mode = dif.is_object() ? dif.value("mode", "") : "";
+      if (mode != "tables" && mode != "delta") {
+        errors.push_back("raywave.diffraction.mode: expected \"tables\" or \"delta\"");
+      } else if (mode == "tables") {
+        const json& files = dif.value("files", json());
+        if (!files.is_object() || !files.contains("edge"))
+          errors.push_back("raywave.diffraction.files: missing (needs at least \"edge\")");
+        else
+          for (auto& [k, name] : files.items())
+            if (!name.is_string() || !tex.contains(name.get<std::string>()))
+              errors.push_back(
+                  fmt::format("raywave.diffraction.files.{}: not a texture of the atlas", k));
+      }
     }
   }
   if (manifest_out) *manifest_out = m;
@@ -374,7 +390,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     json raywave;
     if (spec.tier == Tier::Raywave) {
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
-                            "factors (S.20) baked; diffraction, noise and shading are not yet"},
+                            "factors (S.20), aperture diffraction (S.34, S.35) baked; noise, colour "
+                            "from absorption and shading are not yet"},
                  {"yarns", json::object()}};
       const json canon_warp = canon["warp"], canon_weft = canon["weft"];
       std::optional<PlyTables> yarn_tables[2];
@@ -458,6 +475,59 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         if (opt.progress) opt.progress("double layer", 0.5 * (side + 1));
       }
       raywave["double_layer"] = dl;
+
+      // Aperture diffraction (section 4) through the gaps and past the ply edges.
+      if (spec.wave.diffraction) {
+        if (opt.progress) opt.progress("diffraction", 0.0);
+        const auto dt0 = std::chrono::steady_clock::now();
+        const DiffractionSettings ds = diffraction_settings(spec.quality);
+        const SpectralRgb srgb = spectral_rgb(cc, ds.step_nm);
+        const double w0 = spec.wave.beam_waist_um;
+        const auto gap = gap_widths(spec);
+        json dif = {{"mode", "tables"},
+                    {"beam_waist_um", w0},
+                    {"d_cut_um", LOOM_DIFFRACTION_DCUT_WAISTS * w0},
+                    {"s_max", LOOM_DIFFRACTION_S_MAX},
+                    {"tile_size", ds.size},
+                    {"lambda_nm", {kLambdaMinNm, kLambdaMaxNm, ds.step_nm}},
+                    {"gap_um", {gap[0], gap[1]}},
+                    {"files", {{"edge", "diffraction_edge"}}},
+                    {"edge_tiles", ds.edge_tiles},
+                    {"layout",
+                     "RGB D_c(s) per unit incident power and solid angle (Eq. S.35 without the "
+                     "obliquity factor), tiles of tile_size^2 texels: texel (u, r) of a tile at "
+                     "|s_x| = s_max (u / (tile_size - 1))^2, |s_y| likewise with row r counted "
+                     "from the bottom (v = 0) (osl/include/loom/diffraction_table.h); gap tiles: column block i, row block "
+                     "j hold the beam centre offset (i, j) / (gap_offsets - 1) * gap_um / 2 from "
+                     "the hole's centre; edge tiles: column block j holds x_w / d_cut = j / "
+                     "(edge_tiles - 1) (baker/include/loom/diffraction_tables.h)"}};
+        const auto to_image = [](const DiffractionTable& t) {
+          Image img(t.width(), t.height(), 3);
+          std::copy(t.rgb.begin(), t.rgb.end(), img.data.begin());
+          return img;
+        };
+        add_table(to_image(diffraction_edge_table(w0, srgb, ds)), "diffraction_edge",
+                  {"r", "g", "b"}, "ply-edge aperture diffraction (section 4.3; layout: manifest "
+                  "raywave.diffraction.layout)");
+        if (spec.components.gaps && gap[0] > 0 && gap[1] > 0) {
+          add_table(to_image(diffraction_gap_table(gap[0], gap[1], w0, srgb, ds)),
+                    "diffraction_gap", {"r", "g", "b"},
+                    "gap aperture diffraction (section 4.1-4.2; layout: manifest "
+                    "raywave.diffraction.layout)");
+          dif["files"]["gap"] = "diffraction_gap";
+          dif["gap_offsets"] = ds.gap_offsets;
+        } else {
+          dif["gap_absent"] = spec.components.gaps ? "the yarns touch: no open gaps"
+                                                   : "components.gaps is off";
+        }
+        dif["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - dt0).count();
+        raywave["diffraction"] = dif;
+        if (opt.progress) opt.progress("diffraction", 1.0);
+      } else {
+        raywave["diffraction"] = {
+            {"mode", "delta"},
+            {"reason", "wave.diffraction is off: delta transmission (the non-wave variant)"}};
+      }
     }
     for (auto& [name, t] : textures.items()) {
       t["sha256"] = sha256_file(tmp / t["file"].get<std::string>());

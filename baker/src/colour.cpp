@@ -11,6 +11,7 @@ namespace loom {
 struct ColourConverter::Impl {
   OCIO::ConstConfigRcPtr config;
   OCIO::ConstCPUProcessorRcPtr cpu;
+  OCIO::ConstCPUProcessorRcPtr xyz;  // null when the config has no XYZ interchange role
   std::string config_name, src, dst;
 };
 
@@ -42,6 +43,18 @@ ColourConverter::ColourConverter(const std::string& config_path) : impl_(std::ma
       curve->setOffset({0.055, 0.055, 0.055, 0.0});
       srgb->setTransform(curve, OCIO::COLORSPACE_DIR_TO_REFERENCE);
       cfg->addColorSpace(srgb);
+      auto xyz = OCIO::ColorSpace::Create();
+      xyz->setName("Linear CIE-XYZ D65");
+      xyz->setFamily("linear");
+      auto m = OCIO::MatrixTransform::Create();
+      // IEC 61966-2-1 (sRGB) XYZ to linear Rec.709, D65.
+      const double M[16] = {3.2404542, -1.5371385, -0.4985314, 0, -0.9692660, 1.8760108,
+                            0.0415560, 0, 0.0556434, -0.2040259, 1.0572252, 0,
+                            0, 0, 0, 1};
+      m->setMatrix(M);
+      xyz->setTransform(m, OCIO::COLORSPACE_DIR_TO_REFERENCE);
+      cfg->addColorSpace(xyz);
+      cfg->setRole("cie_xyz_d65_interchange", "Linear CIE-XYZ D65");
       cfg->setRole(OCIO::ROLE_SCENE_LINEAR, "Linear Rec.709");
       cfg->setRole(OCIO::ROLE_REFERENCE, "Linear Rec.709");
       impl_->config = cfg;
@@ -51,6 +64,9 @@ ColourConverter::ColourConverter(const std::string& config_path) : impl_(std::ma
     }
     auto proc = impl_->config->getProcessor(impl_->src.c_str(), impl_->dst.c_str());
     impl_->cpu = proc->getDefaultCPUProcessor();
+    if (impl_->config->hasRole("cie_xyz_d65_interchange"))
+      impl_->xyz = impl_->config->getProcessor("cie_xyz_d65_interchange", OCIO::ROLE_SCENE_LINEAR)
+                       ->getDefaultCPUProcessor();
   } catch (const OCIO::Exception& e) {
     throw std::runtime_error(std::string("colour conversion (OpenColorIO): ") + e.what());
   }
@@ -60,6 +76,20 @@ std::array<double, 3> ColourConverter::srgb_to_linear(const std::array<double, 3
   float px[3] = {float(c[0]), float(c[1]), float(c[2])};
   impl_->cpu->applyRGB(px);
   return {px[0], px[1], px[2]};
+}
+
+std::array<std::array<double, 3>, 3> ColourConverter::xyz_to_linear_matrix() const {
+  if (!impl_->xyz)
+    throw std::runtime_error("colour conversion (OpenColorIO): the config " + impl_->config_name +
+                             " has no cie_xyz_d65_interchange role (needed for spectra)");
+  std::array<std::array<double, 3>, 3> M{};
+  for (int j = 0; j < 3; ++j) {
+    float px[3] = {0, 0, 0};
+    px[j] = 1.0f;
+    impl_->xyz->applyRGB(px);
+    for (int i = 0; i < 3; ++i) M[i][j] = px[i];
+  }
+  return M;
 }
 
 nlohmann::json ColourConverter::describe() const {

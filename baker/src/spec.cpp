@@ -393,6 +393,12 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     s.perlin.cells_per_repeat = p.integer("cells_per_repeat", s.perlin.cells_per_repeat, 1, 64);
     p.reject_unknown();
   }
+  {
+    Reader w(sub(r, "wave", errors), "$.wave", errors);
+    s.wave.diffraction = w.boolean("diffraction", s.wave.diffraction);
+    s.wave.beam_waist_um = w.number("beam_waist_um", s.wave.beam_waist_um, 1, 1000, "um");
+    w.reject_unknown();
+  }
   r.reject_unknown();
 
   // Cross-field checks.
@@ -521,7 +527,9 @@ json canonical_spec(const FabricSpec& s) {
               {"perlin",
                {{"seed", s.perlin.seed},
                 {"amplitude", s.perlin.amplitude},
-                {"cells_per_repeat", s.perlin.cells_per_repeat}}}};
+                {"cells_per_repeat", s.perlin.cells_per_repeat}}},
+              {"wave",
+               {{"diffraction", s.wave.diffraction}, {"beam_waist_um", s.wave.beam_waist_um}}}};
 }
 
 }  // namespace loom

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
 #include "loom/ply_scattering.h"
@@ -37,6 +38,19 @@ bool parse_vec(const std::string& s, int n, std::vector<double>& out) {
     pos = end + 1;
   }
   return int(out.size()) == n;
+}
+
+/// CLI::Range for real numbers, but NaN and infinities are rejected too (every comparison with
+/// NaN is false, so CLI::Range lets it through).
+CLI::Validator finite_range(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& s) -> std::string {
+        std::vector<double> v;
+        if (!parse_vec(s, 1, v)) return fmt::format("\"{}\" is not a finite number", s);
+        if (v[0] < lo || v[0] > hi) return fmt::format("{} is not in [{}, {}]", s, lo, hi);
+        return "";
+      },
+      fmt::format("in [{}, {}]", lo, hi));
 }
 
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors) {
@@ -124,6 +138,24 @@ int main(int argc, char** argv) {
       ->required();
   asg->add_option("--v", asg_v_s, "X,Y,Z direction in ply space (normalised)")->required();
 
+  auto* diffraction = eval->add_subcommand(
+      "diffraction",
+      "Gaussian-beam aperture diffraction (Eq. S.34, S.35) for one wavelength and direction pair");
+  std::string dif_aperture_s, dif_wi_s, dif_wo_s;
+  double dif_waist = 10, dif_lambda = 550;
+  diffraction
+      ->add_option("--aperture", dif_aperture_s,
+                   "XW,XE,YS,YN: the rectangle [XW, XE] x [YS, YN] in um, relative to the beam "
+                   "centre (inf and -inf allowed)")
+      ->required();
+  diffraction->add_option("--waist", dif_waist, "beam waist w_0 in um (Eq. S.25)")
+      ->check(finite_range(1e-3, 1e6));
+  diffraction->add_option("--lambda", dif_lambda, "wavelength in nm")->check(finite_range(1.0, 1e5));
+  diffraction->add_option("--wi", dif_wi_s, "X,Y,Z towards the light, aperture frame (z normal)")
+      ->required();
+  diffraction->add_option("--wo", dif_wo_s, "X,Y,Z towards the receiver on the far side")
+      ->required();
+
   auto* plysim = eval->add_subcommand(
       "plysim", "simulate one (theta_i, h) slice of ply scattering and print energy fractions");
   std::string plysim_spec, plysim_yarn = "warp", plysim_quality;
@@ -135,12 +167,12 @@ int main(int argc, char** argv) {
   plysim->add_option("--theta-i", plysim_theta, "incident angle from the ply's normal plane, "
                                                 "degrees [-90, 90]")
       ->required()
-      ->check(CLI::Range(-90.0, 90.0));
+      ->check(finite_range(-90.0, 90.0));
   plysim->add_option("--h", plysim_h, "beam offset across the ply, [-1, 1]")
       ->required()
-      ->check(CLI::Range(-1.0, 1.0));
+      ->check(finite_range(-1.0, 1.0));
   plysim->add_option("--sigma", plysim_sigma, "fiber absorption, 1/mm, [0, 1e6]")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(finite_range(0.0, 1e6));
   plysim->add_option("--rays", plysim_rays, "rays (default: the quality preset's per slice)")
       ->check(CLI::Range(1, 100000000));
   plysim->add_option("--quality", plysim_quality, "draft | preview | final | reference");
@@ -154,12 +186,12 @@ int main(int argc, char** argv) {
   raywave->add_option("--atlas", rw_atlas, "ray-wave atlas directory")->required();
   raywave->add_option("--theta-i", rw_theta, "incident angle, degrees [-90, 90]")
       ->required()
-      ->check(CLI::Range(-90.0, 90.0));
+      ->check(finite_range(-90.0, 90.0));
   raywave->add_option("--h", rw_h, "offset across the ply, [-1, 1]")
       ->required()
-      ->check(CLI::Range(-1.0, 1.0));
+      ->check(finite_range(-1.0, 1.0));
   raywave->add_option("--sigma", rw_sigma, "fiber absorption, 1/mm, [0, 1e6]")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(finite_range(0.0, 1e6));
   raywave->add_option("--wo", rw_wo_s, "X,Y,Z outgoing direction in ply space")->required();
   raywave->add_option("--yarn", rw_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
   raywave->add_flag("--raw", rw_raw,
@@ -174,7 +206,12 @@ int main(int argc, char** argv) {
   tables->add_option("--reference", tables_ref, "ray-wave atlas to compare with")->required();
   tables->add_option("--yarn", tables_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; every bad command line exits 2, like every other bad input.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
 
   try {
     if (*bake) {
@@ -305,6 +342,59 @@ int main(int argc, char** argv) {
                                float(q[5]), dir);
       float integral = sh::asg_integral(float(q[3]), float(q[4]), float(q[5]));
       std::cout << json{{"value", val}, {"integral", integral}}.dump() << std::endl;
+      return 0;
+    }
+    if (*diffraction) {
+      std::vector<double> A;
+      {
+        // Like parse_vec, but +-inf are allowed (an unbounded side).
+        std::string t = dif_aperture_s;
+        size_t pos = 0;
+        bool good = true;
+        while (good) {
+          const size_t end = t.find(',', pos);
+          const std::string tok = t.substr(pos, end == std::string::npos ? end : end - pos);
+          if (tok == "inf" || tok == "+inf") {
+            A.push_back(INFINITY);
+          } else if (tok == "-inf") {
+            A.push_back(-INFINITY);
+          } else {
+            std::vector<double> one;
+            good = parse_vec(tok, 1, one);
+            if (good) A.push_back(one[0]);
+          }
+          if (end == std::string::npos) break;
+          pos = end + 1;
+        }
+        if (!good || A.size() != 4 || !(A[0] <= A[1]) || !(A[2] <= A[3])) {
+          std::cerr << "error: --aperture: expected XW,XE,YS,YN in um with XW <= XE and YS <= YN "
+                       "(numbers, or inf / -inf for an unbounded side)\n";
+          return 2;
+        }
+      }
+      std::vector<double> wi, wo;
+      for (auto [name, str, out] : {std::tuple{"--wi", &dif_wi_s, &wi}, {"--wo", &dif_wo_s, &wo}}) {
+        if (!parse_vec(*str, 3, *out) || std::hypot((*out)[0], (*out)[1], (*out)[2]) == 0) {
+          std::cerr << "error: " << name << ": expected X,Y,Z (three finite numbers, not all zero)\n";
+          return 2;
+        }
+        const double n = std::hypot((*out)[0], (*out)[1], (*out)[2]);
+        for (double& c : *out) c /= n;
+      }
+      const loom::Aperture ap{A[0], A[1], A[2], A[3]};
+      const double lambda_um = dif_lambda * 1e-3;
+      const std::array<double, 3> xi{wi[0], wi[1], wi[2]}, xo{wo[0], wo[1], wo[2]};
+      const auto K = loom::aperture_K(ap, (wi[0] + wo[0]) / lambda_um, (wi[1] + wo[1]) / lambda_um,
+                                      dif_waist);
+      const double I = loom::aperture_intensity(ap, dif_waist, lambda_um, xi, xo);
+      std::cout << json{{"intensity", I},
+                        {"K", {K.real(), K.imag()}},
+                        {"f", {(wi[0] + wo[0]) / lambda_um, (wi[1] + wo[1]) / lambda_um}},
+                        {"beam_power", loom::beam_power(dif_waist)},
+                        {"aperture_power", loom::aperture_power(ap, dif_waist)},
+                        {"units", "lengths um, f 1/um, K um^2, intensity um^2 (Eq. S.35)"}}
+                       .dump()
+                << std::endl;
       return 0;
     }
     if (*tables) {

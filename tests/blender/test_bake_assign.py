@@ -127,6 +127,9 @@ def main():
     # Presets come from loom-bake.
     presets = loom.api.presets()
     assert "plain" in presets and "twill" in presets, presets
+    # The add-on's fallback list (shown before loom-bake is found) is the same list in the same
+    # order: Blender stores the preset choice by index.
+    assert presets == list(bakery.FALLBACK_PRESETS), (presets, bakery.FALLBACK_PRESETS)
 
     # 1. Blocking bake through the API (uses the preferences), then a cached re-bake.
     t0 = time.monotonic()

@@ -1,11 +1,13 @@
 // Ray-wave atlases: the ply tables round-trip through the atlas exactly as fitted, the raywave
 // probe answers with the table's value and the bake's own simulation (--raw), and validation
-// rejects a ray-wave manifest without its tables.
+// rejects a ray-wave manifest without its tables; the diffraction tables are stored as computed.
 #include <gtest/gtest.h>
 
 #include <fstream>
 
+#include "loom/diffraction_tables.h"
 #include "loom/ply_tables.h"
+#include "loom/spectrum.h"
 #include "lobe_paths.h"
 #include "test_util.h"
 
@@ -86,6 +88,24 @@ void atlas_holds_the_fitted_tables_exactly() {
   }
   // The weft (other IOR) has its own tables.
   EXPECT_NE(m["raywave"]["yarns"]["warp"]["files"]["high"], m["raywave"]["yarns"]["weft"]["files"]["high"]);
+  // Diffraction tables: what diffraction_*_table computes for this fabric, stored as float.
+  const json& dif = m["raywave"]["diffraction"];
+  ASSERT_EQ(dif["mode"], "tables");
+  const auto ds = loom::diffraction_settings(loom::Quality::Draft);
+  const auto srgb = loom::spectral_rgb(loom::ColourConverter(), ds.step_nm);
+  const auto gap = loom::gap_widths(spec);
+  ASSERT_GT(gap[0], 0);
+  const auto want_gap = loom::diffraction_gap_table(gap[0], gap[1], 10.0, srgb, ds);
+  const auto want_edge = loom::diffraction_edge_table(10.0, srgb, ds);
+  for (auto [name, want] : {std::pair{"diffraction_gap", &want_gap}, {"diffraction_edge", &want_edge}}) {
+    ASSERT_EQ(dif["files"].value(name == std::string("diffraction_gap") ? "gap" : "edge", ""), name);
+    const auto& img = atlas.map(name);
+    ASSERT_EQ(img.width, want->width());
+    ASSERT_EQ(img.height, want->height());
+    for (int y = 0; y < img.height; y += 5)
+      for (int x = 0; x < img.width; x += 3)
+        for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(img.px(x, y)[c], want->px(x, y)[c]);
+  }
 }
 
 void raywave_probe_answers_from_tables_and_simulation() {
@@ -137,6 +157,37 @@ void validation_rejects_a_raywave_manifest_without_tables() {
   ASSERT_EQ(errors.size(), 2u);
   EXPECT_NE(errors[0].find("raywave.yarns.warp"), std::string::npos) << errors[0];
   EXPECT_NE(errors[1].find("raywave.yarns.weft.files.high"), std::string::npos) << errors[1];
+
+  // Diffraction: a listed table must be a texture of the atlas; "delta" lists none.
+  fs::copy(raywave_atlas() / "manifest.json", d / "manifest.json",
+           fs::copy_options::overwrite_existing);
+  {
+    std::ifstream in(d / "manifest.json");
+    m = json::parse(in);
+  }
+  m["raywave"]["diffraction"]["files"]["gap"] = "no_such_table";
+  {
+    std::ofstream out(d / "manifest.json");
+    out << m.dump(2);
+  }
+  errors = loom::validate_atlas(d);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("raywave.diffraction.files.gap"), std::string::npos) << errors[0];
+  m["raywave"]["diffraction"] = {{"mode", "delta"}};
+  {
+    std::ofstream out(d / "manifest.json");
+    out << m.dump(2);
+  }
+  errors = loom::validate_atlas(d);
+  EXPECT_TRUE(errors.empty()) << errors[0];
+  m["raywave"]["diffraction"] = {{"mode", "wavy"}};
+  {
+    std::ofstream out(d / "manifest.json");
+    out << m.dump(2);
+  }
+  errors = loom::validate_atlas(d);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("raywave.diffraction.mode"), std::string::npos) << errors[0];
 }
 
 // One test, so that the (slow under the sanitizers) ray-wave bake runs once per process.

@@ -161,3 +161,22 @@ TEST(Spec, ProceduralFiberFields) {
   EXPECT_EQ(r.spec.warp.hair_flyaways_per_mm, 2.5);
   EXPECT_EQ(loom::canonical_spec(r.spec)["warp"]["migration_period"], 1.5);
 }
+
+TEST(Spec, WaveFields) {
+  json d = base();
+  d["wave"] = {{"beam_waist_um", 0.5}};
+  expect_one_error(d, {"$.wave.beam_waist_um", "[1, 1000]", "um"});
+  d["wave"] = {{"diffraction", "yes"}};
+  expect_one_error(d, {"$.wave.diffraction"});
+  d["wave"] = {{"diffracton", false}};
+  expect_one_error(d, {"$.wave.diffracton"});
+  d["wave"] = {{"diffraction", false}, {"beam_waist_um", 25}};
+  auto r = parse_spec(d);
+  ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
+  EXPECT_FALSE(r.spec.wave.diffraction);
+  EXPECT_EQ(loom::canonical_spec(r.spec)["wave"]["beam_waist_um"], 25.0);
+  // Defaults: diffraction on, the supplement's 10 um waist (Eq. S.36).
+  auto def = parse_spec(base());
+  EXPECT_TRUE(def.spec.wave.diffraction);
+  EXPECT_EQ(def.spec.wave.beam_waist_um, 10.0);
+}

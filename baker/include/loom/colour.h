@@ -17,6 +17,10 @@ class ColourConverter {
  public:
   explicit ColourConverter(const std::string& config_path = "");
   std::array<double, 3> srgb_to_linear(const std::array<double, 3>& c) const;
+  /// The linear map from CIE XYZ (D65) to scene linear: the config's `cie_xyz_d65_interchange`
+  /// role (Blender's configs define it) to its `scene_linear` role; the built-in config's XYZ
+  /// space is the IEC 61966-2-1 XYZ to linear Rec.709 matrix. Rows are output channels.
+  std::array<std::array<double, 3>, 3> xyz_to_linear_matrix() const;
   /// What the manifest records: config, source space, destination space, OCIO version.
   nlohmann::json describe() const;
 

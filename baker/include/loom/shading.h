@@ -12,4 +12,5 @@ namespace loom::shading {
 #include "../../../osl/include/loom/surface_bsdf.h"
 #include "../../../osl/include/loom/closure_mapping.h"
 #include "../../../osl/include/loom/asg.h"
+#include "../../../osl/include/loom/diffraction_table.h"
 }  // namespace loom::shading

@@ -1,8 +1,9 @@
 // The fabric spec: one JSON file describes a fabric (schema "loom.fabric/1").
 //
-// Every field has a unit, a default and an allowed range (see `spec_fields()` and
-// `loom-bake spec --fields`). Parsing never throws on bad input: it returns every problem found,
-// one message per problem, each naming the JSON path and the allowed range.
+// Every field has a unit, a default and an allowed range (the README's spec table; `loom-bake
+// check` prints the canonical spec with every default filled in). Parsing never throws on bad
+// input: it returns every problem found, one message per problem, each naming the JSON path and
+// the allowed range.
 #pragma once
 
 #include <array>
@@ -69,6 +70,16 @@ struct ComponentSpec {
   bool shadowing = true;     ///< ply/yarn shadowing-masking (horizon visibility)
 };
 
+/// Wave optics of the ray-wave tier (ray-wave supplement, sections 4 and 5).
+struct WaveSpec {
+  /// Gaussian-beam aperture diffraction (section 4) through gaps and past ply edges; false is
+  /// the papers' "non-wave" variant, delta transmission, and bakes no diffraction tables.
+  bool diffraction = true;
+  /// w_0 of Eq. S.25, um, [1, 1000]. The text's worked example (Eq. S.36) uses 10 um; it is the
+  /// size of the coherent patch the light brings (tens of um for sunlight, less for lamps).
+  double beam_waist_um = 10.0;
+};
+
 struct FabricSpec {
   std::string name = "default";
   WeaveSpec weave;
@@ -83,6 +94,7 @@ struct FabricSpec {
   double double_layer_blend = 0.5;
   ComponentSpec components;
   PerlinSpec perlin;
+  WaveSpec wave;
 };
 
 struct SpecResult {
