@@ -23,6 +23,8 @@
 #include "loom/colour.h"
 #include "loom/diffraction_tables.h"
 #include "loom/double_layer.h"
+#include "loom/shading.h"
+#include "loom/speckle_noise.h"
 #include "loom/ply_tables.h"
 
 namespace fs = std::filesystem;
@@ -285,6 +287,14 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           errors.push_back(fmt::format("raywave.double_layer.files.{}: not a texture of the atlas",
                                        f));
       }
+      // Noise: the listed tiles (none when wave.noise is off) are textures of the atlas.
+      const json& noise = m["raywave"].value("noise", json());
+      if (!noise.is_object() || !noise.contains("files") || !noise["files"].is_object())
+        errors.push_back("raywave.noise.files: missing");
+      else
+        for (auto& [k, name] : noise["files"].items())
+          if (!name.is_string() || !tex.contains(name.get<std::string>()))
+            errors.push_back(fmt::format("raywave.noise.files.{}: not a texture of the atlas", k));
       // Diffraction: "tables" lists its files; "delta" (the non-wave variant) has none.
       const json& dif = m["raywave"].value("diffraction", json());
       const std::string mode = dif.is_object() ? dif.value("mode", "") : "";
@@ -390,14 +400,15 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     json raywave;
     if (spec.tier == Tier::Raywave) {
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
-                            "factors (S.20), aperture diffraction (S.34, S.35) baked; noise, colour "
-                            "from absorption and shading are not yet"},
+                            "factors (S.20), aperture diffraction (S.34, S.35), speckle noise tiles "
+                            "(S.37, S.38) baked; colour from absorption and shading are not yet"},
                  {"yarns", json::object()}};
       const json canon_warp = canon["warp"], canon_weft = canon["weft"];
       std::optional<PlyTables> yarn_tables[2];
       auto add_table = [&](const Image& img, const std::string& name,
-                           std::vector<std::string> channels, const std::string& what) {
-        write_map(img, tmp, name, false, "clamp", channels);
+                           std::vector<std::string> channels, const std::string& what,
+                           bool half = false, const char* tiling = "clamp") {
+        write_map(img, tmp, name, half, tiling, channels);
         json range = json::array();
         for (int c = 0; c < img.channels; ++c) {
           float lo = INFINITY, hi = -INFINITY;
@@ -410,9 +421,9 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                           {"channels", channels},
                           {"range", range},
                           {"units", std::vector<std::string>(channels.size(), "")},
-                          {"format", "float"},
+                          {"format", half ? "half" : "float"},
                           {"size", {img.width, img.height}},
-                          {"tiling", "clamp"},
+                          {"tiling", tiling},
                           {"description", what}};
       };
       for (const char* yarn : {"warp", "weft"}) {
@@ -527,6 +538,46 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         raywave["diffraction"] = {
             {"mode", "delta"},
             {"reason", "wave.diffraction is off: delta transmission (the non-wave variant)"}};
+      }
+
+      // Speckle noise tiles (section 5): reflection and higher-order scattering.
+      if (spec.wave.noise) {
+        if (opt.progress) opt.progress("noise", 0.0);
+        const auto nt0 = std::chrono::steady_clock::now();
+        const NoiseSettings ns = noise_settings(spec.quality);
+        json noise = {{"theta_count", ns.theta_count},
+                      {"instances", ns.instances},
+                      {"band_nm", kNoiseBandsNm},
+                      {"width_um", spec.wave.beam_waist_um},
+                      {"segments_per_repeat", LOOM_NOISE_SEGMENTS_PER_REPEAT},
+                      {"psd", "P_1D(lambda; f) = exp(-2 (lambda f / width_um)^2), f in cycles "
+                              "per radian (baker/include/loom/speckle_noise.h)"},
+                      {"files", {{"refl", "noise_refl"}, {"high", "noise_high"}}},
+                      {"layout",
+                       "RGB = N_2D (Eq. S.38) at band_nm; u = (phi_o + pi) / 2 pi, periodic; "
+                       "instance j's rows (from the bottom) j theta_count ... (j + 1) "
+                       "theta_count - 1 span theta_o from -pi/2 to pi/2, ply space "
+                       "(osl/include/loom/speckle_noise.h)"}};
+        int k = 0;
+        for (const char* which : {"refl", "high"}) {
+          const Image tile = speckle_noise_tile(ns, spec.wave.beam_waist_um, kNoiseSeed + uint64_t(k));
+          // Half floats: the noise needs no more than 3 significant digits, and it is the
+          // largest table of the atlas.
+          add_table(tile, std::string("noise_") + which, {"n_r", "n_g", "n_b"},
+                    std::string("speckle noise tile for ") +
+                        (k == 0 ? "surface reflection (looked up at the memory-effect "
+                                  "direction, Eq. S.40)"
+                                : "higher-order scattering (looked up at w_o)") +
+                        "; layout: manifest raywave.noise.layout",
+                    true, "periodic");
+          ++k;
+          if (opt.progress) opt.progress("noise", 0.5 * k);
+        }
+        noise["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - nt0).count();
+        raywave["noise"] = noise;
+      } else {
+        raywave["noise"] = {{"files", json::object()},
+                            {"reason", "wave.noise is off: the mean scattering, unmodulated"}};
       }
     }
     for (auto& [name, t] : textures.items()) {

@@ -397,6 +397,7 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     Reader w(sub(r, "wave", errors), "$.wave", errors);
     s.wave.diffraction = w.boolean("diffraction", s.wave.diffraction);
     s.wave.beam_waist_um = w.number("beam_waist_um", s.wave.beam_waist_um, 1, 1000, "um");
+    s.wave.noise = w.boolean("noise", s.wave.noise);
     w.reject_unknown();
   }
   r.reject_unknown();
@@ -529,7 +530,9 @@ json canonical_spec(const FabricSpec& s) {
                 {"amplitude", s.perlin.amplitude},
                 {"cells_per_repeat", s.perlin.cells_per_repeat}}},
               {"wave",
-               {{"diffraction", s.wave.diffraction}, {"beam_waist_um", s.wave.beam_waist_um}}}};
+               {{"diffraction", s.wave.diffraction},
+                {"beam_waist_um", s.wave.beam_waist_um},
+                {"noise", s.wave.noise}}}};
 }
 
 }  // namespace loom

@@ -206,6 +206,15 @@ int main(int argc, char** argv) {
   tables->add_option("--reference", tables_ref, "ray-wave atlas to compare with")->required();
   tables->add_option("--yarn", tables_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
 
+  auto* noise = eval->add_subcommand(
+      "noise", "statistics of a ray-wave atlas's speckle noise tiles (Eq. S.37, S.38)");
+  std::string noise_atlas;
+  bool noise_stats = false;
+  noise->add_option("--atlas", noise_atlas, "ray-wave atlas")->required();
+  noise->add_flag("--stats", noise_stats,
+                  "per tile, instance and band: mean (1 by construction), variance, min, max")
+      ->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -395,6 +404,44 @@ int main(int argc, char** argv) {
                         {"units", "lengths um, f 1/um, K um^2, intensity um^2 (Eq. S.35)"}}
                        .dump()
                 << std::endl;
+      return 0;
+    }
+    if (*noise) {
+      auto atlas = loom::load_atlas(noise_atlas);
+      const json& m = atlas.manifest;
+      const json* nj = m.contains("raywave") ? &m["raywave"] : nullptr;
+      if (!nj || !nj->contains("noise") || (*nj)["noise"]["files"].empty()) {
+        std::cerr << "error: " << noise_atlas
+                  << ": no speckle noise tiles (bake a ray-wave spec with wave.noise on)\n";
+        return 2;
+      }
+      const json& n = (*nj)["noise"];
+      const int H = n["theta_count"], inst = n["instances"];
+      json out = json::object();
+      for (auto& [which, file] : n["files"].items()) {
+        const auto& img = atlas.map(file.get<std::string>());
+        json per = json::array();
+        for (int j = 0; j < inst; ++j) {
+          json bands = json::array();
+          for (int c = 0; c < img.channels; ++c) {
+            double sum = 0, sum2 = 0, lo = INFINITY, hi = -INFINITY;
+            for (int y = j * H; y < (j + 1) * H; ++y)
+              for (int x = 0; x < img.width; ++x) {
+                const double v = img.px(x, y)[c];
+                sum += v, sum2 += v * v, lo = std::min(lo, v), hi = std::max(hi, v);
+              }
+            const double cnt = double(H) * img.width, mean = sum / cnt;
+            bands.push_back({{"band_nm", n["band_nm"][size_t(c)]},
+                             {"mean", mean},
+                             {"variance", sum2 / cnt - mean * mean},
+                             {"min", lo},
+                             {"max", hi}});
+          }
+          per.push_back({{"instance", j}, {"bands", bands}});
+        }
+        out[which] = per;
+      }
+      std::cout << out.dump() << std::endl;
       return 0;
     }
     if (*tables) {

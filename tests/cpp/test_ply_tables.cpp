@@ -7,6 +7,7 @@
 
 #include "loom/diffraction_tables.h"
 #include "loom/ply_tables.h"
+#include "loom/speckle_noise.h"
 #include "loom/spectrum.h"
 #include "lobe_paths.h"
 #include "test_util.h"
@@ -106,6 +107,34 @@ void atlas_holds_the_fitted_tables_exactly() {
       for (int x = 0; x < img.width; x += 3)
         for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(img.px(x, y)[c], want->px(x, y)[c]);
   }
+  // Noise tiles: the draft tiles of the fixed seeds.
+  const json& noise = m["raywave"]["noise"];
+  const auto ns = loom::noise_settings(loom::Quality::Draft);
+  EXPECT_EQ(noise["theta_count"], ns.theta_count);
+  int k = 0;
+  for (const char* which : {"refl", "high"}) {
+    const auto want = loom::speckle_noise_tile(ns, 10.0, loom::kNoiseSeed + uint64_t(k++));
+    const auto& img = atlas.map(noise["files"][which].get<std::string>());
+    ASSERT_EQ(img.width, want.width);
+    ASSERT_EQ(img.height, want.height);
+    // Stored as half floats: 11 significant bits (relative 2^-11), subnormals below 6.1e-5.
+    for (size_t i = 0; i < want.data.size(); i += 7)
+      ASSERT_NEAR(img.data[i], want.data[i], std::ldexp(std::fabs(want.data[i]), -11) + 6.1e-5);
+  }
+  // eval noise --stats reads them back: unit means (64 x 128 texels of nearly independent
+  // speckle at the draft resolution: +-0.05 is over 4 standard errors).
+  std::string out;
+  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval noise --stats --atlas " + dir.string(), &out), 0)
+      << out;
+  const json st = json::parse(out);
+  for (const char* which : {"refl", "high"}) {
+    ASSERT_EQ(st[which].size(), size_t(ns.instances));
+    for (const auto& b : st[which][0]["bands"]) {
+      EXPECT_NEAR(b["mean"].get<double>(), 1.0, 0.05) << which;
+      EXPECT_GT(b["variance"].get<double>(), 0.3) << which;
+      EXPECT_GE(b["min"].get<double>(), 0.0);
+    }
+  }
 }
 
 void raywave_probe_answers_from_tables_and_simulation() {
@@ -180,6 +209,15 @@ void validation_rejects_a_raywave_manifest_without_tables() {
   }
   errors = loom::validate_atlas(d);
   EXPECT_TRUE(errors.empty()) << errors[0];
+  m["raywave"]["noise"]["files"]["high"] = "noise_elsewhere";
+  {
+    std::ofstream out(d / "manifest.json");
+    out << m.dump(2);
+  }
+  errors = loom::validate_atlas(d);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("raywave.noise.files.high"), std::string::npos) << errors[0];
+  m["raywave"]["noise"]["files"]["high"] = "noise_high";
   m["raywave"]["diffraction"] = {{"mode", "wavy"}};
   {
     std::ofstream out(d / "manifest.json");

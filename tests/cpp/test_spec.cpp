@@ -170,13 +170,17 @@ TEST(Spec, WaveFields) {
   expect_one_error(d, {"$.wave.diffraction"});
   d["wave"] = {{"diffracton", false}};
   expect_one_error(d, {"$.wave.diffracton"});
-  d["wave"] = {{"diffraction", false}, {"beam_waist_um", 25}};
+  d["wave"] = {{"noise", 1}};
+  expect_one_error(d, {"$.wave.noise"});
+  d["wave"] = {{"diffraction", false}, {"beam_waist_um", 25}, {"noise", false}};
   auto r = parse_spec(d);
   ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
   EXPECT_FALSE(r.spec.wave.diffraction);
+  EXPECT_FALSE(r.spec.wave.noise);
   EXPECT_EQ(loom::canonical_spec(r.spec)["wave"]["beam_waist_um"], 25.0);
   // Defaults: diffraction on, the supplement's 10 um waist (Eq. S.36).
   auto def = parse_spec(base());
   EXPECT_TRUE(def.spec.wave.diffraction);
+  EXPECT_TRUE(def.spec.wave.noise);
   EXPECT_EQ(def.spec.wave.beam_waist_um, 10.0);
 }

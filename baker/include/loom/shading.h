@@ -13,4 +13,5 @@ namespace loom::shading {
 #include "../../../osl/include/loom/closure_mapping.h"
 #include "../../../osl/include/loom/asg.h"
 #include "../../../osl/include/loom/diffraction_table.h"
+#include "../../../osl/include/loom/speckle_noise.h"
 }  // namespace loom::shading

@@ -78,6 +78,8 @@ struct WaveSpec {
   /// w_0 of Eq. S.25, um, [1, 1000]. The text's worked example (Eq. S.36) uses 10 um; it is the
   /// size of the coherent patch the light brings (tens of um for sunlight, less for lamps).
   double beam_waist_um = 10.0;
+  /// Speckle noise tiles (section 5) baked for the shaders to modulate the ply scattering.
+  bool noise = true;
 };
 
 struct FabricSpec {

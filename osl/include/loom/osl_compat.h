@@ -74,6 +74,7 @@ inline float cos(float x) { return std::cos(x); }
 inline float tan(float x) { return std::tan(x); }
 inline float atan2(float y, float x) { return std::atan2(y, x); }
 inline float acos(float x) { return std::acos(x); }
+inline float asin(float x) { return std::asin(x); }
 inline float floor(float x) { return std::floor(x); }
 inline float fabs(float x) { return std::fabs(x); }
 inline float abs(float x) { return std::fabs(x); }

@@ -1,0 +1,80 @@
+// Wave-optics speckle noise (ray-wave supplement, section 5): the part the shaders evaluate.
+// The baker (baker/src/speckle_noise.cpp) synthesises the noise tiles N_2D over outgoing
+// directions (Eq. S.37, S.38); these functions find where to read them.
+//
+// Tile coordinates. A direction w in ply space (the ply along +z) has theta = asin(w.z) in
+// [-pi/2, pi/2] (elevation from the plane normal to the ply) and phi = atan2(w.y, w.x) in
+// (-pi, pi]. A tile spans phi over [-pi, pi) across (u) and theta over [-pi/2, pi/2] up (v),
+// periodic in phi.
+//
+// Spatial variation (section 5.2): "different noise instances for different positions on the
+// fabric, through a hash of the ply ID and the position along the ply". Choice: the ply is cut
+// into segments LOOM_NOISE_SEGMENTS_PER_REPEAT per unit of the atlas's `along` coordinate; a
+// hash of (ply ID, segment) picks one of the baked instances and a rotation of the tile in phi
+// (seamless, since the tile is periodic in phi). The hash uses only float arithmetic on exact
+// integers below 2^24, so OSL and C++ give bit-identical results.
+#ifndef LOOM_SPECKLE_NOISE_H
+#define LOOM_SPECKLE_NOISE_H
+#include "osl_compat.h"
+
+#define LOOM_NOISE_SEGMENTS_PER_REPEAT 16.0
+#define LOOM_NOISE_HASH_MOD 65521.0
+
+/// One round of a multiplicative hash on exact float integers: x is reduced mod p = 65521 first,
+/// so a x + c (a, c < 256) stays below 2^24, where float arithmetic is exact.
+LOOM_FN float noise_hash_round(float x, float a, float c) {
+  return mod(a * mod(x, LOOM_NOISE_HASH_MOD) + c, LOOM_NOISE_HASH_MOD);
+}
+
+/// A hash of (ply ID in [0, 1), segment index) to [0, 1). Deterministic and identical in OSL
+/// and C++ (exact integer arithmetic in float).
+LOOM_FN float noise_hash(float ply_id, float segment) {
+  float a = floor(clamp(ply_id, 0.0, 1.0) * 4095.0);
+  float b = mod(floor(segment), 4096.0);
+  float h = noise_hash_round(a * 16.0 + mod(b, 16.0), 251.0, 17.0);
+  h = noise_hash_round(h + floor(b / 16.0) * 97.0, 223.0, 41.0);
+  h = noise_hash_round(h, 199.0, 7.0);
+  h = noise_hash_round(h, 241.0, 113.0);
+  return h / LOOM_NOISE_HASH_MOD;
+}
+
+/// (theta, phi) of a ply-space direction; zero or NaN directions give (0, 0).
+LOOM_FN void noise_angles(vector w, LOOM_OUT(float) theta, LOOM_OUT(float) phi) {
+  vector n = normalize(w);
+  float z = clamp(n[2], -1.0, 1.0);
+  theta = 0.0;
+  phi = 0.0;
+  if (isfinite(z) && z == z) {
+    theta = asin(z);
+    float r = n[0] * n[0] + n[1] * n[1];
+    if (r > 0.0) phi = atan2(n[1], n[0]);
+  }
+}
+
+/// Texture coordinates of a ply-space direction in noise instance `instance` of `instances`
+/// (stacked bottom to top), with the tile rotated by `phi_shift` (a fraction of a turn).
+LOOM_FN void noise_tile_uv(vector w, float phi_shift, int instance, int instances,
+                           LOOM_OUT(float) u, LOOM_OUT(float) v) {
+  float theta = 0.0, phi = 0.0;
+  noise_angles(w, theta, phi);
+  u = mod((phi + LOOM_M_PI) / (2.0 * LOOM_M_PI) + phi_shift, 1.0);
+  float t = clamp((theta + 0.5 * LOOM_M_PI) / LOOM_M_PI, 0.0, 1.0);
+  v = (instance + t) / max(instances, 1);
+}
+
+/// Eq. S.40, the memory effect of surface reflection: the outgoing direction w'_o whose half
+/// vector with the nominal incidence w_i^n = (0, 1, 0) (theta_i = 0) equals the half vector of
+/// (w_i, w_o): the mirror of w_i^n about that half vector, w'_o = 2 (w_i^n . H) H - w_i^n. When
+/// w_i^n . H < 0 no direction satisfies S.40 exactly (the half vectors would point apart); the
+/// same mirror is used, which keeps the look-up continuous. When w_i = -w_o (no half vector),
+/// w_o itself.
+LOOM_FN vector noise_memory_effect_direction(vector wi, vector wo) {
+  vector s = normalize(wi) + normalize(wo);
+  float l = length(s);
+  if (!(l > 1e-6)) return normalize(wo);
+  vector H = s / l;
+  vector n = vector(0.0, 1.0, 0.0);
+  return 2.0 * dot(n, H) * H - n;
+}
+
+#endif
