@@ -19,6 +19,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "loom/absorption.h"
 #include "loom/albedo_lut.h"
 #include "loom/colour.h"
 #include "loom/diffraction_tables.h"
@@ -316,6 +317,52 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
   return errors;
 }
 
+std::string raywave_simulation_key(json canon, const std::string& colour,
+                                   const std::string& baker_id) {
+  canon.erase("name");
+  for (const char* y : {"warp", "weft"})
+    if (canon.contains(y) && canon[y].is_object()) canon[y].erase("color");
+  return sha256_string(canon.dump() + colour + baker_id);
+}
+
+namespace {
+
+/// Textures of a ray-wave atlas that do not depend on the yarn colours.
+bool colour_independent_texture(const std::string& name) {
+  for (const char* prefix : {"ply_high_", "ply_refl_", "double_layer_", "diffraction_", "noise_"})
+    if (name.rfind(prefix, 0) == 0) return true;
+  return false;
+}
+
+/// A valid ray-wave atlas among the candidates whose simulation key is `key`: the given
+/// directories, the destination, then the destination's siblings (the add-on's cache keeps
+/// every atlas in one directory). Returns its directory and manifest.
+std::optional<std::pair<fs::path, json>> find_simulation(const std::string& key, const fs::path& dir,
+                                                         const std::vector<fs::path>& extra) {
+  std::vector<fs::path> cands(extra.begin(), extra.end());
+  cands.push_back(dir);
+  std::error_code ec;
+  int scanned = 0;
+  for (fs::directory_iterator it(dir.parent_path(), ec), end; !ec && it != end; it.increment(ec)) {
+    if (++scanned > 512) break;  // a crowded directory is not worth a long search
+    const auto name = it->path().filename().string();
+    if (!name.empty() && name[0] != '.' && it->path() != dir) cands.push_back(it->path());
+  }
+  for (const fs::path& c : cands) {
+    std::ifstream in(c / "manifest.json");
+    if (!in) continue;
+    json m = json::parse(in, nullptr, false);
+    if (m.is_discarded() || !m.is_object() || !m.contains("raywave") ||
+        !m["raywave"].is_object() || m["raywave"].value("simulation_key", "") != key)
+      continue;
+    if (!validate_atlas(c, &m).empty()) continue;
+    return std::pair{fs::absolute(c), m};
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions& opt) {
   auto t0 = std::chrono::steady_clock::now();
   fs::path dir = fs::absolute(dir_in).lexically_normal();
@@ -401,9 +448,14 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     if (spec.tier == Tier::Raywave) {
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
                             "factors (S.20), aperture diffraction (S.34, S.35), speckle noise tiles "
-                            "(S.37, S.38) baked; colour from absorption and shading are not yet"},
+                            "(S.37, S.38) and absorption spectra from the yarn colours (S.42) baked; "
+                            "shading is not yet"},
                  {"yarns", json::object()}};
-      const json canon_warp = canon["warp"], canon_weft = canon["weft"];
+      // The ply tables do not depend on the yarn colour (colour is absorption, applied through
+      // the tables' levels): a weft that differs only in colour shares the warp's tables.
+      json canon_warp = canon["warp"], canon_weft = canon["weft"];
+      canon_warp.erase("color");
+      canon_weft.erase("color");
       std::optional<PlyTables> yarn_tables[2];
       auto add_table = [&](const Image& img, const std::string& name,
                            std::vector<std::string> channels, const std::string& what,
@@ -426,158 +478,233 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                           {"tiling", tiling},
                           {"description", what}};
       };
-      for (const char* yarn : {"warp", "weft"}) {
-        const bool weft_same = std::string(yarn) == "weft" && canon_weft == canon_warp;
-        if (weft_same) {
-          raywave["yarns"]["weft"] = raywave["yarns"]["warp"];
-          raywave["yarns"]["weft"]["yarn"] = "weft";
-          raywave["yarns"]["weft"]["same_as"] = "warp";
-          continue;
+      // A colour-only change: copy the colour-independent tables of an atlas with the same
+      // simulation key (the destination's previous bake, a sibling in the cache, or --reuse).
+      const std::string sim_key =
+          raywave_simulation_key(canon, cc.describe().dump(), baker_id);
+      const auto source = opt.force ? std::nullopt : find_simulation(sim_key, dir, opt.reuse_from);
+      std::optional<AbsorptionCurve> curves[2];
+      double sigma_max[2] = {0, 0};
+      if (source) {
+        const json& sm = source->second;
+        const json status = raywave["status"];
+        raywave = sm["raywave"];
+        raywave["status"] = status;
+        raywave["reused_from"] = source->first.string();
+        for (auto& [name, t] : sm["textures"].items()) {
+          if (!colour_independent_texture(name)) continue;
+          for (const char* key : {"file", "node_file"})
+            fs::copy_file(source->first / t[key].get<std::string>(), tmp / t[key].get<std::string>());
+          textures[name] = t;
         }
-        const YarnSpec& y = std::string(yarn) == "warp" ? spec.warp : spec.weft;
-        PlyTables& pt = yarn_tables[std::string(yarn) == "warp" ? 0 : 1].emplace(
-            bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn));
-        json entry = ply_tables_manifest(pt, yarn);
-        add_table(asg_nodes_image(pt.high), entry["files"]["high"],
-                  {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                  "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
-                  "(layout: baker/include/loom/ply_tables.h)");
-        add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
-                  "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k "
-                  "(layout: baker/include/loom/ply_tables.h)");
-        add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
-                  {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                  "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
-                  "(layout: baker/include/loom/ply_tables.h)");
-        raywave["yarns"][yarn] = entry;
-      }
-      // Double-layer factors (Eq. S.20): warp over weft seen from the front, weft over warp
-      // from the back.
-      const PlySimResult& warp_sim = yarn_tables[0]->raw;
-      const PlySimResult& weft_sim = yarn_tables[1] ? yarn_tables[1]->raw : warp_sim;
-      const Layer warp_layer{&warp_sim, {1, 0, 0}}, weft_layer{&weft_sim, {0, 1, 0}};
-      const DoubleLayerSettings dls = double_layer_settings(spec.quality);
-      json dl = {{"theta_count", dls.theta_count},
-                 {"phi_count", dls.phi_count},
-                 {"sigma_per_mm", warp_sim.settings.sigmas},
-                 {"blend", spec.double_layer_blend},
-                 {"files", {{"front", "double_layer_front"}, {"back", "double_layer_back"}}},
-                 {"layout",
-                  "B_t, F_t, B_total, F_total (Eq. S.20) per direction xi towards the light: "
-                  "column p at azimuth (p + 0.5) 360 / phi_count deg, row k theta_count + t at "
-                  "level sigma_k and angle from the normal (t + 0.5) 90 / theta_count deg; the "
-                  "back table takes xi mirrored to +z"}};
-      if (opt.progress) opt.progress("double layer", 0.0);
-      for (int side = 0; side < 2; ++side) {
-        DoubleLayerTable t = side == 0 ? double_layer_table(warp_layer, weft_layer, dls)
-                                       : double_layer_table(weft_layer, warp_layer, dls);
-        const int K = int(t.values.size()) / (dls.theta_count * dls.phi_count);
-        Image img(dls.phi_count, dls.theta_count * K, 4);
-        for (int row = 0; row < dls.theta_count * K; ++row)
-          for (int c = 0; c < dls.phi_count; ++c) {
-            const DoubleLayerFactors& f = t.values[size_t(row * dls.phi_count + c)];
-            float* px = img.px(c, row);
-            px[0] = float(f.Bt), px[1] = float(f.Ft), px[2] = float(f.Btotal), px[3] = float(f.Ftotal);
+        for (int i = 0; i < 2; ++i) {
+          const json& y = raywave["yarns"][i == 0 ? "warp" : "weft"];
+          AbsorptionCurve c;
+          c.sigma_per_mm = y["absorption"]["curve"]["sigma_per_mm"].get<std::vector<double>>();
+          c.energy = y["absorption"]["curve"]["energy"].get<std::vector<double>>();
+          c.rays = y["absorption"]["curve"]["rays"].get<uint64_t>();
+          curves[i] = c;
+          sigma_max[i] = y["high"]["sigma_per_mm"].back().get<double>();
+        }
+        res.reused_simulation = source->first;
+      } else {
+        for (const char* yarn : {"warp", "weft"}) {
+          const bool weft_same = std::string(yarn) == "weft" && canon_weft == canon_warp;
+          if (weft_same) {
+            raywave["yarns"]["weft"] = raywave["yarns"]["warp"];
+            raywave["yarns"]["weft"]["yarn"] = "weft";
+            raywave["yarns"]["weft"]["same_as"] = "warp";
+            continue;
           }
-        add_table(img, side == 0 ? "double_layer_front" : "double_layer_back",
-                  {"B_t", "F_t", "B_total", "F_total"},
-                  "double-layer reflection and transmission factors (layout: manifest "
-                  "raywave.double_layer.layout)");
-        if (opt.progress) opt.progress("double layer", 0.5 * (side + 1));
-      }
-      raywave["double_layer"] = dl;
-
-      // Aperture diffraction (section 4) through the gaps and past the ply edges.
-      if (spec.wave.diffraction) {
-        if (opt.progress) opt.progress("diffraction", 0.0);
-        const auto dt0 = std::chrono::steady_clock::now();
-        const DiffractionSettings ds = diffraction_settings(spec.quality);
-        const SpectralRgb srgb = spectral_rgb(cc, ds.step_nm);
-        const double w0 = spec.wave.beam_waist_um;
-        const auto gap = gap_widths(spec);
-        json dif = {{"mode", "tables"},
-                    {"beam_waist_um", w0},
-                    {"d_cut_um", LOOM_DIFFRACTION_DCUT_WAISTS * w0},
-                    {"s_max", LOOM_DIFFRACTION_S_MAX},
-                    {"tile_size", ds.size},
-                    {"lambda_nm", {kLambdaMinNm, kLambdaMaxNm, ds.step_nm}},
-                    {"gap_um", {gap[0], gap[1]}},
-                    {"files", {{"edge", "diffraction_edge"}}},
-                    {"edge_tiles", ds.edge_tiles},
-                    {"layout",
-                     "RGB D_c(s) per unit incident power and solid angle (Eq. S.35 without the "
-                     "obliquity factor), tiles of tile_size^2 texels: texel (u, r) of a tile at "
-                     "|s_x| = s_max (u / (tile_size - 1))^2, |s_y| likewise with row r counted "
-                     "from the bottom (v = 0) (osl/include/loom/diffraction_table.h); gap tiles: column block i, row block "
-                     "j hold the beam centre offset (i, j) / (gap_offsets - 1) * gap_um / 2 from "
-                     "the hole's centre; edge tiles: column block j holds x_w / d_cut = j / "
-                     "(edge_tiles - 1) (baker/include/loom/diffraction_tables.h)"}};
-        const auto to_image = [](const DiffractionTable& t) {
-          Image img(t.width(), t.height(), 3);
-          std::copy(t.rgb.begin(), t.rgb.end(), img.data.begin());
-          return img;
-        };
-        add_table(to_image(diffraction_edge_table(w0, srgb, ds)), "diffraction_edge",
-                  {"r", "g", "b"}, "ply-edge aperture diffraction (section 4.3; layout: manifest "
-                  "raywave.diffraction.layout)");
-        if (spec.components.gaps && gap[0] > 0 && gap[1] > 0) {
-          add_table(to_image(diffraction_gap_table(gap[0], gap[1], w0, srgb, ds)),
-                    "diffraction_gap", {"r", "g", "b"},
-                    "gap aperture diffraction (section 4.1-4.2; layout: manifest "
-                    "raywave.diffraction.layout)");
-          dif["files"]["gap"] = "diffraction_gap";
-          dif["gap_offsets"] = ds.gap_offsets;
-        } else {
-          dif["gap_absent"] = spec.components.gaps ? "the yarns touch: no open gaps"
-                                                   : "components.gaps is off";
+          const YarnSpec& y = std::string(yarn) == "warp" ? spec.warp : spec.weft;
+          PlyTables& pt = yarn_tables[std::string(yarn) == "warp" ? 0 : 1].emplace(
+              bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn));
+          json entry = ply_tables_manifest(pt, yarn);
+          add_table(asg_nodes_image(pt.high), entry["files"]["high"],
+                    {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
+                    "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                    "(layout: baker/include/loom/ply_tables.h)");
+          add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
+                    "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k "
+                    "(layout: baker/include/loom/ply_tables.h)");
+          add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
+                    {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
+                    "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                    "(layout: baker/include/loom/ply_tables.h)");
+          raywave["yarns"][yarn] = entry;
         }
-        dif["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - dt0).count();
-        raywave["diffraction"] = dif;
-        if (opt.progress) opt.progress("diffraction", 1.0);
-      } else {
-        raywave["diffraction"] = {
-            {"mode", "delta"},
-            {"reason", "wave.diffraction is off: delta transmission (the non-wave variant)"}};
-      }
+        // Double-layer factors (Eq. S.20): warp over weft seen from the front, weft over warp
+        // from the back.
+        const PlySimResult& warp_sim = yarn_tables[0]->raw;
+        const PlySimResult& weft_sim = yarn_tables[1] ? yarn_tables[1]->raw : warp_sim;
+        const Layer warp_layer{&warp_sim, {1, 0, 0}}, weft_layer{&weft_sim, {0, 1, 0}};
+        const DoubleLayerSettings dls = double_layer_settings(spec.quality);
+        json dl = {{"theta_count", dls.theta_count},
+                   {"phi_count", dls.phi_count},
+                   {"sigma_per_mm", warp_sim.settings.sigmas},
+                   {"blend", spec.double_layer_blend},
+                   {"files", {{"front", "double_layer_front"}, {"back", "double_layer_back"}}},
+                   {"layout",
+                    "B_t, F_t, B_total, F_total (Eq. S.20) per direction xi towards the light: "
+                    "column p at azimuth (p + 0.5) 360 / phi_count deg, row k theta_count + t at "
+                    "level sigma_k and angle from the normal (t + 0.5) 90 / theta_count deg; the "
+                    "back table takes xi mirrored to +z"}};
+        if (opt.progress) opt.progress("double layer", 0.0);
+        for (int side = 0; side < 2; ++side) {
+          DoubleLayerTable t = side == 0 ? double_layer_table(warp_layer, weft_layer, dls)
+                                         : double_layer_table(weft_layer, warp_layer, dls);
+          const int K = int(t.values.size()) / (dls.theta_count * dls.phi_count);
+          Image img(dls.phi_count, dls.theta_count * K, 4);
+          for (int row = 0; row < dls.theta_count * K; ++row)
+            for (int c = 0; c < dls.phi_count; ++c) {
+              const DoubleLayerFactors& f = t.values[size_t(row * dls.phi_count + c)];
+              float* px = img.px(c, row);
+              px[0] = float(f.Bt), px[1] = float(f.Ft), px[2] = float(f.Btotal), px[3] = float(f.Ftotal);
+            }
+          add_table(img, side == 0 ? "double_layer_front" : "double_layer_back",
+                    {"B_t", "F_t", "B_total", "F_total"},
+                    "double-layer reflection and transmission factors (layout: manifest "
+                    "raywave.double_layer.layout)");
+          if (opt.progress) opt.progress("double layer", 0.5 * (side + 1));
+        }
+        raywave["double_layer"] = dl;
 
-      // Speckle noise tiles (section 5): reflection and higher-order scattering.
-      if (spec.wave.noise) {
-        if (opt.progress) opt.progress("noise", 0.0);
-        const auto nt0 = std::chrono::steady_clock::now();
-        const NoiseSettings ns = noise_settings(spec.quality);
-        json noise = {{"theta_count", ns.theta_count},
-                      {"instances", ns.instances},
-                      {"band_nm", kNoiseBandsNm},
-                      {"width_um", spec.wave.beam_waist_um},
-                      {"segments_per_repeat", LOOM_NOISE_SEGMENTS_PER_REPEAT},
-                      {"psd", "P_1D(lambda; f) = exp(-2 (lambda f / width_um)^2), f in cycles "
-                              "per radian (baker/include/loom/speckle_noise.h)"},
-                      {"files", {{"refl", "noise_refl"}, {"high", "noise_high"}}},
+        // Aperture diffraction (section 4) through the gaps and past the ply edges.
+        if (spec.wave.diffraction) {
+          if (opt.progress) opt.progress("diffraction", 0.0);
+          const auto dt0 = std::chrono::steady_clock::now();
+          const DiffractionSettings ds = diffraction_settings(spec.quality);
+          const SpectralRgb srgb = spectral_rgb(cc, ds.step_nm);
+          const double w0 = spec.wave.beam_waist_um;
+          const auto gap = gap_widths(spec);
+          json dif = {{"mode", "tables"},
+                      {"beam_waist_um", w0},
+                      {"d_cut_um", LOOM_DIFFRACTION_DCUT_WAISTS * w0},
+                      {"s_max", LOOM_DIFFRACTION_S_MAX},
+                      {"tile_size", ds.size},
+                      {"lambda_nm", {kLambdaMinNm, kLambdaMaxNm, ds.step_nm}},
+                      {"gap_um", {gap[0], gap[1]}},
+                      {"files", {{"edge", "diffraction_edge"}}},
+                      {"edge_tiles", ds.edge_tiles},
                       {"layout",
-                       "RGB = N_2D (Eq. S.38) at band_nm; u = (phi_o + pi) / 2 pi, periodic; "
-                       "instance j's rows (from the bottom) j theta_count ... (j + 1) "
-                       "theta_count - 1 span theta_o from -pi/2 to pi/2, ply space "
-                       "(osl/include/loom/speckle_noise.h)"}};
-        int k = 0;
-        for (const char* which : {"refl", "high"}) {
-          const Image tile = speckle_noise_tile(ns, spec.wave.beam_waist_um, kNoiseSeed + uint64_t(k));
-          // Half floats: the noise needs no more than 3 significant digits, and it is the
-          // largest table of the atlas.
-          add_table(tile, std::string("noise_") + which, {"n_r", "n_g", "n_b"},
-                    std::string("speckle noise tile for ") +
-                        (k == 0 ? "surface reflection (looked up at the memory-effect "
-                                  "direction, Eq. S.40)"
-                                : "higher-order scattering (looked up at w_o)") +
-                        "; layout: manifest raywave.noise.layout",
-                    true, "periodic");
-          ++k;
-          if (opt.progress) opt.progress("noise", 0.5 * k);
+                       "RGB D_c(s) per unit incident power and solid angle (Eq. S.35 without the "
+                       "obliquity factor), tiles of tile_size^2 texels: texel (u, r) of a tile at "
+                       "|s_x| = s_max (u / (tile_size - 1))^2, |s_y| likewise with row r counted "
+                       "from the bottom (v = 0) (osl/include/loom/diffraction_table.h); gap tiles: column block i, row block "
+                       "j hold the beam centre offset (i, j) / (gap_offsets - 1) * gap_um / 2 from "
+                       "the hole's centre; edge tiles: column block j holds x_w / d_cut = j / "
+                       "(edge_tiles - 1) (baker/include/loom/diffraction_tables.h)"}};
+          const auto to_image = [](const DiffractionTable& t) {
+            Image img(t.width(), t.height(), 3);
+            std::copy(t.rgb.begin(), t.rgb.end(), img.data.begin());
+            return img;
+          };
+          add_table(to_image(diffraction_edge_table(w0, srgb, ds)), "diffraction_edge",
+                    {"r", "g", "b"}, "ply-edge aperture diffraction (section 4.3; layout: manifest "
+                    "raywave.diffraction.layout)");
+          if (spec.components.gaps && gap[0] > 0 && gap[1] > 0) {
+            add_table(to_image(diffraction_gap_table(gap[0], gap[1], w0, srgb, ds)),
+                      "diffraction_gap", {"r", "g", "b"},
+                      "gap aperture diffraction (section 4.1-4.2; layout: manifest "
+                      "raywave.diffraction.layout)");
+            dif["files"]["gap"] = "diffraction_gap";
+            dif["gap_offsets"] = ds.gap_offsets;
+          } else {
+            dif["gap_absent"] = spec.components.gaps ? "the yarns touch: no open gaps"
+                                                     : "components.gaps is off";
+          }
+          dif["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - dt0).count();
+          raywave["diffraction"] = dif;
+          if (opt.progress) opt.progress("diffraction", 1.0);
+        } else {
+          raywave["diffraction"] = {
+              {"mode", "delta"},
+              {"reason", "wave.diffraction is off: delta transmission (the non-wave variant)"}};
         }
-        noise["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - nt0).count();
-        raywave["noise"] = noise;
-      } else {
-        raywave["noise"] = {{"files", json::object()},
-                            {"reason", "wave.noise is off: the mean scattering, unmodulated"}};
+
+        // Speckle noise tiles (section 5): reflection and higher-order scattering.
+        if (spec.wave.noise) {
+          if (opt.progress) opt.progress("noise", 0.0);
+          const auto nt0 = std::chrono::steady_clock::now();
+          const NoiseSettings ns = noise_settings(spec.quality);
+          json noise = {{"theta_count", ns.theta_count},
+                        {"instances", ns.instances},
+                        {"band_nm", kNoiseBandsNm},
+                        {"width_um", spec.wave.beam_waist_um},
+                        {"segments_per_repeat", LOOM_NOISE_SEGMENTS_PER_REPEAT},
+                        {"psd", "P_1D(lambda; f) = exp(-2 (lambda f / width_um)^2), f in cycles "
+                                "per radian (baker/include/loom/speckle_noise.h)"},
+                        {"files", {{"refl", "noise_refl"}, {"high", "noise_high"}}},
+                        {"layout",
+                         "RGB = N_2D (Eq. S.38) at band_nm; u = (phi_o + pi) / 2 pi, periodic; "
+                         "instance j's rows (from the bottom) j theta_count ... (j + 1) "
+                         "theta_count - 1 span theta_o from -pi/2 to pi/2, ply space "
+                         "(osl/include/loom/speckle_noise.h)"}};
+          int k = 0;
+          for (const char* which : {"refl", "high"}) {
+            const Image tile = speckle_noise_tile(ns, spec.wave.beam_waist_um, kNoiseSeed + uint64_t(k));
+            // Half floats: the noise needs no more than 3 significant digits, and it is the
+            // largest table of the atlas.
+            add_table(tile, std::string("noise_") + which, {"n_r", "n_g", "n_b"},
+                      std::string("speckle noise tile for ") +
+                          (k == 0 ? "surface reflection (looked up at the memory-effect "
+                                    "direction, Eq. S.40)"
+                                  : "higher-order scattering (looked up at w_o)") +
+                          "; layout: manifest raywave.noise.layout",
+                      true, "periodic");
+            ++k;
+            if (opt.progress) opt.progress("noise", 0.5 * k);
+          }
+          noise["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - nt0).count();
+          raywave["noise"] = noise;
+        } else {
+          raywave["noise"] = {{"files", json::object()},
+                              {"reason", "wave.noise is off: the mean scattering, unmodulated"}};
+        }
+        for (int i = 0; i < 2; ++i) {
+          const int src = yarn_tables[i] ? i : 0;
+          if (!curves[src])
+            curves[src] = absorption_curve(src == 0 ? spec.warp : spec.weft, spec.quality);
+          curves[i] = curves[src];
+          sigma_max[i] = yarn_tables[src]->sim.sigmas.back();
+        }
+      }
+      raywave["simulation_key"] = sim_key;
+      // Colour from absorption (section 6, Eq. S.42): each yarn's colour through its ply's
+      // simulated sigma -> energy curve (computed above, or reused).
+      {
+        if (opt.progress) opt.progress("absorption", 0.0);
+        const auto at0 = std::chrono::steady_clock::now();
+        const SpectralUpsampler up(cc, 5.0);
+        for (int i = 0; i < 2; ++i) {
+          const char* yarn = i == 0 ? "warp" : "weft";
+          const AbsorptionCurve& curve = *curves[i];
+          const AbsorptionFit fit = fit_absorption(curve);
+          const YarnSpec& y = i == 0 ? spec.warp : spec.weft;
+          const YarnAbsorption ya = yarn_absorption(y.color_linear, up, fit, curve, sigma_max[i]);
+          raywave["yarns"][yarn]["absorption"] = {
+              {"colour_linear", y.color_linear},
+              {"sigmoid_coeffs", ya.spectrum.coeffs},
+              {"lambda_nm", ya.lambda_nm},
+              {"sigma_per_mm", ya.sigma_per_mm},
+              {"sigma_rgb_per_mm", ya.sigma_rgb},
+              {"rgb_spectrum", ya.rgb_spectrum},
+              {"rgb_ply", ya.rgb_ply},
+              {"s42", {{"a_mm", fit.a},
+                       {"b", fit.b},
+                       {"rms_log_error", fit.rms_log_error},
+                       {"sigma_per_mm", ya.sigma_s42_per_mm},
+                       {"rgb_ply", ya.rgb_s42}}},
+              {"curve", {{"sigma_per_mm", curve.sigma_per_mm},
+                         {"energy", curve.energy},
+                         {"rays", curve.rays}}},
+              {"notes", "sigma(lambda) maps the sigmoid spectrum (Jakob and Hanika 2019) of the "
+                        "yarn colour through the ply's simulated wide-beam sigma -> energy curve "
+                        "at theta_i = 0; s42 is the text's exponential fit (Eq. S.42) for "
+                        "comparison (baker/include/loom/absorption.h)"}};
+        }
+        raywave["absorption_seconds"] =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - at0).count();
       }
     }
     for (auto& [name, t] : textures.items()) {

@@ -1,5 +1,6 @@
 // loom-bake: bake a fabric spec into an atlas, inspect an atlas, and probe its BSDF.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fmt/format.h>
@@ -7,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include "loom/absorption.h"
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
@@ -86,7 +88,14 @@ int main(int argc, char** argv) {
                    "OpenColorIO config for colour conversion (e.g. Blender's); default: $OCIO "
                    "or Loom's built-in sRGB -> linear Rec.709");
   bake->add_option("--progress", progress_mode, "progress output: auto|text|json|none");
-  bake->add_flag("--force", force, "re-bake even if the destination holds this spec's atlas");
+  bake->add_flag("--force", force,
+                 "re-bake from scratch even if the destination holds this spec's atlas, and "
+                 "re-simulate a ray-wave spec whose tables another atlas holds");
+  std::vector<std::string> reuse_dirs;
+  bake->add_option("--reuse", reuse_dirs,
+                   "ray-wave atlas whose colour-independent tables (ply tables, double layer, "
+                   "diffraction, noise) a colour-only change may copy; the destination and its "
+                   "siblings are always looked at");
 
   std::string inspect_dir;
   bool inspect_json = false;
@@ -215,6 +224,15 @@ int main(int argc, char** argv) {
                   "per tile, instance and band: mean (1 by construction), variance, min, max")
       ->required();
 
+  auto* colour = eval->add_subcommand(
+      "colour", "a colour through a ray-wave atlas's absorption data: sigma(lambda) (Eq. S.42) "
+                "and the RGB the ply reflects with it");
+  std::string colour_rgb_s, colour_atlas, colour_yarn = "warp";
+  colour->add_option("--rgb", colour_rgb_s, "R,G,B scene-linear, each in [0, 1]")->required();
+  colour->add_option("--atlas", colour_atlas, "ray-wave atlas")->required();
+  colour->add_option("--yarn", colour_yarn, "warp | weft (whose ply model)")
+      ->check(CLI::IsMember({"warp", "weft"}));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -237,6 +255,7 @@ int main(int argc, char** argv) {
       loom::BakeOptions opt;
       opt.ocio_config = ocio;
       opt.force = force;
+      for (const auto& d : reuse_dirs) opt.reuse_from.emplace_back(d);
       if (progress_mode == "json") {
         opt.progress = [](const std::string& stage, double f) {
           std::cout << json{{"stage", stage}, {"fraction", f}}.dump() << std::endl;
@@ -250,6 +269,7 @@ int main(int argc, char** argv) {
       auto r = loom::bake_atlas(res.spec, out_dir, opt);
       std::cout << json{{"atlas", r.dir.string()},
                         {"reused", r.reused},
+                        {"reused_simulation", r.reused_simulation.string()},
                         {"seconds", r.seconds},
                         {"bytes", r.bytes}}
                        .dump()
@@ -402,6 +422,53 @@ int main(int argc, char** argv) {
                         {"beam_power", loom::beam_power(dif_waist)},
                         {"aperture_power", loom::aperture_power(ap, dif_waist)},
                         {"units", "lengths um, f 1/um, K um^2, intensity um^2 (Eq. S.35)"}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*colour) {
+      std::vector<double> rgb;
+      if (!parse_vec(colour_rgb_s, 3, rgb) || *std::min_element(rgb.begin(), rgb.end()) < 0 ||
+          *std::max_element(rgb.begin(), rgb.end()) > 1) {
+        std::cerr << "error: --rgb: expected R,G,B, three numbers in [0, 1] (scene-linear)\n";
+        return 2;
+      }
+      auto atlas = loom::load_atlas(colour_atlas);
+      const json& m = atlas.manifest;
+      const json y = m.contains("raywave") ? m["raywave"]["yarns"].value(colour_yarn, json())
+                                           : json();
+      if (!y.is_object() || !y.contains("absorption")) {
+        std::cerr << "error: " << colour_atlas
+                  << ": no absorption data (bake a ray-wave spec; this atlas has tier "
+                  << m.value("tier", "?") << ")\n";
+        return 2;
+      }
+      const json& a = y["absorption"];
+      loom::AbsorptionCurve curve;
+      curve.sigma_per_mm = a["curve"]["sigma_per_mm"].get<std::vector<double>>();
+      curve.energy = a["curve"]["energy"].get<std::vector<double>>();
+      loom::AbsorptionFit fit;
+      fit.a = a["s42"]["a_mm"], fit.b = a["s42"]["b"];
+      const double sigma_max = y["high"]["sigma_per_mm"].back();
+      // The atlas's own colour configuration (a config file, or the built-in one).
+      std::string cfg = m.contains("colour") ? m["colour"].value("config", "") : "";
+      if (cfg.rfind("loom-builtin", 0) == 0) cfg.clear();
+      const loom::ColourConverter cc(cfg);
+      const loom::SpectralUpsampler up(cc, 5.0);
+      const auto ya = loom::yarn_absorption({rgb[0], rgb[1], rgb[2]}, up, fit, curve, sigma_max);
+      json samples = json::array();
+      for (size_t k = 0; k < ya.lambda_nm.size(); k += 4)  // every 20 nm
+        samples.push_back({{"lambda_nm", ya.lambda_nm[k]},
+                           {"reflectance", ya.spectrum(ya.lambda_nm[k])},
+                           {"sigma_per_mm", ya.sigma_per_mm[k]},
+                           {"sigma_s42_per_mm", ya.sigma_s42_per_mm[k]}});
+      std::cout << json{{"rgb", rgb},
+                        {"sigma", samples},
+                        {"sigma_rgb_per_mm", ya.sigma_rgb},
+                        {"rgb_spectrum", ya.rgb_spectrum},
+                        {"rgb_reconstructed", ya.rgb_ply},
+                        {"rgb_reconstructed_s42", ya.rgb_s42},
+                        {"s42", {{"a_mm", fit.a}, {"b", fit.b}}}}
                        .dump()
                 << std::endl;
       return 0;

@@ -135,6 +135,27 @@ void atlas_holds_the_fitted_tables_exactly() {
       EXPECT_GE(b["min"].get<double>(), 0.0);
     }
   }
+  // Absorption data per yarn; eval colour reconstructs a reachable colour through it.
+  for (const char* yarn : {"warp", "weft"}) {
+    const json& a = m["raywave"]["yarns"][yarn]["absorption"];
+    ASSERT_TRUE(a.is_object()) << yarn;
+    EXPECT_EQ(a["sigma_per_mm"].size(), a["lambda_nm"].size());
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(a["rgb_spectrum"][c].get<double>(), a["colour_linear"][c].get<double>(), 2e-3);
+  }
+  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval colour --rgb 0.5,0.3,0.1 --yarn weft --atlas " +
+                    dir.string(),
+                &out),
+            0)
+      << out;
+  const json col = json::parse(out);
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(col["rgb_reconstructed"][c].get<double>(), col["rgb"][c].get<double>(), 0.01);
+  EXPECT_NE(run(std::string(LOOM_BAKE_EXE) + " eval colour --rgb 1.5,0,0 --atlas " + dir.string() +
+                    " 2>&1",
+                &out),
+            0);
+  EXPECT_NE(out.find("--rgb"), std::string::npos) << out;
 }
 
 void raywave_probe_answers_from_tables_and_simulation() {
@@ -228,6 +249,55 @@ void validation_rejects_a_raywave_manifest_without_tables() {
   EXPECT_NE(errors[0].find("raywave.diffraction.mode"), std::string::npos) << errors[0];
 }
 
+void colour_only_change_reuses_the_simulation() {
+  // Same directory as the first atlas (a sibling): found without being named.
+  auto spec = raywave_draft();
+  spec.warp.color_input = {0.1, 0.6, 0.2};
+  spec.weft.color_input = {0.7, 0.7, 0.1};
+  const fs::path d = raywave_atlas().parent_path() / "raywave-recoloured.atlas";
+  fs::remove_all(d);
+  const auto r = loom::bake_atlas(spec, d, {});
+  EXPECT_EQ(fs::canonical(r.reused_simulation), fs::canonical(raywave_atlas()));
+  json a, b;
+  ASSERT_TRUE(loom::validate_atlas(raywave_atlas(), &a).empty());
+  const auto errors = loom::validate_atlas(d, &b);
+  ASSERT_TRUE(errors.empty()) << errors[0];
+  for (const char* t : {"ply_high_warp", "ply_refl_weft", "double_layer_front", "diffraction_edge",
+                        "noise_high"})
+    EXPECT_EQ(a["textures"][t]["sha256"], b["textures"][t]["sha256"]) << t;
+  EXPECT_EQ(a["raywave"]["simulation_key"], b["raywave"]["simulation_key"]);
+  // The colour-dependent parts follow the new colours.
+  EXPECT_NE(a["textures"]["albedo_reflect"]["sha256"], b["textures"]["albedo_reflect"]["sha256"]);
+  const json& ab = b["raywave"]["yarns"]["warp"]["absorption"];
+  const loom::ColourConverter cc;
+  const auto lin = cc.srgb_to_linear({0.1, 0.6, 0.2});
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(ab["rgb_spectrum"][c].get<double>(), lin[size_t(c)], 2e-3);
+  EXPECT_LT(ab["sigma_rgb_per_mm"][1].get<double>(), ab["sigma_rgb_per_mm"][0].get<double>());
+}
+
+TEST(PlyTables, SimulationKeyIgnoresOnlyColourAndName) {
+  auto canon = [](auto edit) {
+    auto d = loom::preset("plain");
+    d["model"]["tier"] = "raywave";
+    edit(d);
+    auto r = loom::parse_spec(d);
+    EXPECT_TRUE(r.ok());
+    return loom::canonical_spec(r.spec);
+  };
+  const auto key = [](const json& c, const std::string& colour = "cc", const std::string& id = "b") {
+    return loom::raywave_simulation_key(c, colour, id);
+  };
+  const json base = canon([](json&) {});
+  const std::string k = key(base);
+  EXPECT_EQ(k, key(canon([](json& d) { d["yarn"]["color"] = {{"srgb", {0.1, 0.2, 0.3}}}; })));
+  EXPECT_EQ(k, key(canon([](json& d) { d["name"] = "renamed"; })));
+  EXPECT_NE(k, key(canon([](json& d) { d["yarn"]["ior"] = 1.6; })));
+  EXPECT_NE(k, key(canon([](json& d) { d["model"]["quality"] = "final"; })));
+  EXPECT_NE(k, key(canon([](json& d) { d["wave"] = {{"beam_waist_um", 20}}; })));
+  EXPECT_NE(k, key(base, "another colour config"));
+  EXPECT_NE(k, key(base, "cc", "another baker"));
+}
+
 // One test, so that the (slow under the sanitizers) ray-wave bake runs once per process.
 TEST(PlyTables, RaywaveAtlas) {
   {
@@ -241,5 +311,9 @@ TEST(PlyTables, RaywaveAtlas) {
   {
     SCOPED_TRACE("validation");
     validation_rejects_a_raywave_manifest_without_tables();
+  }
+  {
+    SCOPED_TRACE("colour-only change");
+    colour_only_change_reuses_the_simulation();
   }
 }
