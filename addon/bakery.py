@@ -107,6 +107,16 @@ def run_loom_bake(exe: str, args: list[str], timeout: float = 60.0) -> str:
     return cp.stdout
 
 
+def spec_tier(exe: str, spec: str) -> str | None:
+    """The model tier of a spec (preset name or file) by ``loom-bake check``; None when the spec
+    does not validate (the bake itself then reports why)."""
+    try:
+        canon = json.loads(run_loom_bake(exe, ["check", _spec_arg(spec)], timeout=20))
+    except (LoomBakeError, ValueError):
+        return None
+    return canon.get("model", {}).get("tier")
+
+
 def list_presets(exe: str) -> list[str]:
     """Names printed by ``loom-bake presets`` (one a line)."""
     out = run_loom_bake(exe, ["presets"], timeout=20)

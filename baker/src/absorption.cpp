@@ -55,10 +55,13 @@ double AbsorptionFit::sigma(double c, double sigma_max) const {
 }
 
 AbsorptionFit fit_absorption(const AbsorptionCurve& curve) {
-  // log E = a log b + a sigma: a line in sigma, slope a, intercept a log b.
+  // log E = a log b + a sigma: a line in sigma, slope a, intercept a log b. Levels on the
+  // reflection floor (E below twice the curve's last value) are left out with the too dark.
+  const double floor_e = curve.energy.empty() ? 0.0 : curve.energy.back();
+  const double min_e = std::max(kAbsorptionFitMinEnergy, 2 * floor_e);
   double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   for (size_t k = 0; k < curve.energy.size(); ++k) {
-    if (curve.energy[k] < kAbsorptionFitMinEnergy) continue;
+    if (curve.energy[k] < min_e) continue;
     const double x = curve.sigma_per_mm[k], yv = std::log(curve.energy[k]);
     n += 1, sx += x, sy += yv, sxx += x * x, sxy += x * yv;
   }
@@ -71,7 +74,7 @@ AbsorptionFit fit_absorption(const AbsorptionCurve& curve) {
   f.b = std::exp(icpt / slope);
   double se = 0;
   for (size_t k = 0; k < curve.energy.size(); ++k) {
-    if (curve.energy[k] < kAbsorptionFitMinEnergy) continue;
+    if (curve.energy[k] < min_e) continue;
     const double r = std::log(curve.energy[k]) - (icpt + slope * curve.sigma_per_mm[k]);
     se += r * r;
   }

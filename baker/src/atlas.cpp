@@ -409,11 +409,28 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                  fmt::format(".{}.tmp-{}-{:08x}", dir.filename().string(), getpid(), rd());
   fs::create_directory(tmp);
   try {
-    SurfaceMaps maps = bake_surface_maps(spec, opt.progress);
-    Image lut = bake_albedo_lut(spec, opt.progress);
+    // A colour-only change of a ray-wave spec: an atlas with the same simulation key (the
+    // destination's previous bake, a sibling in the cache, or --reuse) holds every table that
+    // does not depend on the colours; they are copied instead of computed.
+    const std::string sim_key = raywave_simulation_key(canon, cc.describe().dump(), baker_id);
+    const auto source = spec.tier != Tier::Raywave || opt.force
+                            ? std::nullopt
+                            : find_simulation(sim_key, dir, opt.reuse_from);
     json textures = json::object();
+    const auto copy_texture = [&](const std::string& name) {
+      const json& t = source->second["textures"][name];
+      for (const char* key : {"file", "node_file"})
+        fs::copy_file(source->first / t[key].get<std::string>(), tmp / t[key].get<std::string>());
+      textures[name] = t;
+    };
+    SurfaceMaps maps = bake_surface_maps(spec, opt.progress, /*horizons=*/!source);
+    Image lut = source ? Image() : bake_albedo_lut(spec, opt.progress);
     for (size_t k = 0; k < maps.images.size(); ++k) {
       const MapInfo& mi = maps.info[k];
+      if (source && mi.name.rfind("albedo_", 0) != 0) {  // only the albedo maps hold colour
+        copy_texture(mi.name);
+        continue;
+      }
       write_map(maps.images[k], tmp, mi.name, true, "periodic", mi.channels);
       textures[mi.name] = {{"file", mi.name + ".tx"},
                            {"node_file", mi.name + ".exr"},
@@ -427,8 +444,11 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                            {"description", mi.description}};
       if (opt.progress) opt.progress("write", double(k + 1) / (maps.images.size() + 1));
     }
-    write_map(lut, tmp, "albedo_lut", false, "clamp", {"A_rs", "A_ggx", "A_ts", "one"});
-    textures["albedo_lut"] = {
+    if (source) {
+      copy_texture("albedo_lut");  // directional albedos per unit colour
+    } else {
+      write_map(lut, tmp, "albedo_lut", false, "clamp", {"A_rs", "A_ggx", "A_ts", "one"});
+      textures["albedo_lut"] = {
         {"file", "albedo_lut.tx"},
         {"node_file", "albedo_lut.exr"},
         {"channels", {"A_rs", "A_ggx", "A_ts", "one"}},
@@ -444,6 +464,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                      "j at max(j/{3}, {4})); columns: view azimuth about t over [0, pi]",
                      LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_ALBEDO_LUT_SIZE,
                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}};
+    }
     json raywave;
     if (spec.tier == Tier::Raywave) {
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
@@ -478,11 +499,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                           {"tiling", tiling},
                           {"description", what}};
       };
-      // A colour-only change: copy the colour-independent tables of an atlas with the same
-      // simulation key (the destination's previous bake, a sibling in the cache, or --reuse).
-      const std::string sim_key =
-          raywave_simulation_key(canon, cc.describe().dump(), baker_id);
-      const auto source = opt.force ? std::nullopt : find_simulation(sim_key, dir, opt.reuse_from);
+      // A colour-only change: the colour-independent tables come from `source` (found above).
       std::optional<AbsorptionCurve> curves[2];
       double sigma_max[2] = {0, 0};
       if (source) {
@@ -491,12 +508,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         raywave = sm["raywave"];
         raywave["status"] = status;
         raywave["reused_from"] = source->first.string();
-        for (auto& [name, t] : sm["textures"].items()) {
-          if (!colour_independent_texture(name)) continue;
-          for (const char* key : {"file", "node_file"})
-            fs::copy_file(source->first / t[key].get<std::string>(), tmp / t[key].get<std::string>());
-          textures[name] = t;
-        }
+        for (auto& [name, t] : sm["textures"].items())
+          if (colour_independent_texture(name)) copy_texture(name);
         for (int i = 0; i < 2; ++i) {
           const json& y = raywave["yarns"][i == 0 ? "warp" : "weft"];
           AbsorptionCurve c;
@@ -630,7 +643,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           json noise = {{"theta_count", ns.theta_count},
                         {"instances", ns.instances},
                         {"band_nm", kNoiseBandsNm},
-                        {"width_um", spec.wave.beam_waist_um},
+                        {"width_um", spec.wave.speckle_width_um},
                         {"segments_per_repeat", LOOM_NOISE_SEGMENTS_PER_REPEAT},
                         {"psd", "P_1D(lambda; f) = exp(-2 (lambda f / width_um)^2), f in cycles "
                                 "per radian (baker/include/loom/speckle_noise.h)"},
@@ -642,7 +655,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                          "(osl/include/loom/speckle_noise.h)"}};
           int k = 0;
           for (const char* which : {"refl", "high"}) {
-            const Image tile = speckle_noise_tile(ns, spec.wave.beam_waist_um, kNoiseSeed + uint64_t(k));
+            const Image tile = speckle_noise_tile(ns, spec.wave.speckle_width_um, kNoiseSeed + uint64_t(k));
             // Half floats: the noise needs no more than 3 significant digits, and it is the
             // largest table of the atlas.
             add_table(tile, std::string("noise_") + which, {"n_r", "n_g", "n_b"},
@@ -661,6 +674,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           raywave["noise"] = {{"files", json::object()},
                               {"reason", "wave.noise is off: the mean scattering, unmodulated"}};
         }
+        const auto ct0 = std::chrono::steady_clock::now();
         for (int i = 0; i < 2; ++i) {
           const int src = yarn_tables[i] ? i : 0;
           if (!curves[src])
@@ -668,6 +682,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           curves[i] = curves[src];
           sigma_max[i] = yarn_tables[src]->sim.sigmas.back();
         }
+        raywave["absorption_curve_seconds"] =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - ct0).count();
       }
       raywave["simulation_key"] = sim_key;
       // Colour from absorption (section 6, Eq. S.42): each yarn's colour through its ply's

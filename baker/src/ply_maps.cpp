@@ -283,7 +283,7 @@ GeometrySample SurfaceGeometry::sample(double x, double y, bool clamp_edge) cons
   return g;
 }
 
-SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress) {
+SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress, bool horizons) {
   const SurfaceGeometry geom(spec);
   const Weave weave = make_weave(spec.weave);
   const int rows = weave.rows(), cols = weave.cols();
@@ -370,6 +370,7 @@ SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress
     }
   });
   if (progress) progress("ply maps", 1.0);
+  if (!horizons) return maps;
 
   // Horizon map from the height field; open gaps do not occlude.
   Image& h0 = maps.images[6];

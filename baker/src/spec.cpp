@@ -398,6 +398,8 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     s.wave.diffraction = w.boolean("diffraction", s.wave.diffraction);
     s.wave.beam_waist_um = w.number("beam_waist_um", s.wave.beam_waist_um, 1, 1000, "um");
     s.wave.noise = w.boolean("noise", s.wave.noise);
+    s.wave.speckle_width_um =
+        w.number("speckle_width_um", s.wave.speckle_width_um, 1, 1000, "um");
     w.reject_unknown();
   }
   r.reject_unknown();
@@ -532,7 +534,8 @@ json canonical_spec(const FabricSpec& s) {
               {"wave",
                {{"diffraction", s.wave.diffraction},
                 {"beam_waist_um", s.wave.beam_waist_um},
-                {"noise", s.wave.noise}}}};
+                {"noise", s.wave.noise},
+                {"speckle_width_um", s.wave.speckle_width_um}}}};
 }
 
 }  // namespace loom

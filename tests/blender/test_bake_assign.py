@@ -253,6 +253,17 @@ def main():
     after = (mat.name, len(bpy.data.materials), [s.material for s in plane.material_slots])
     assert before == after, (before, after)
     print("loom-test: a ray-wave atlas is refused with its reason; nothing changed")
+    # The operator refuses a ray-wave preset (a sample fabric) before baking anything.
+    mat.loom.preset = "orange_polyester_satin"
+    cached = sorted(os.listdir(cache))
+    t0 = time.monotonic()
+    with bpy.context.temp_override(object=plane, material=mat):
+        res = bpy.ops.loom.bake_assign()
+    assert res == {"CANCELLED"}, res
+    assert sorted(os.listdir(cache)) == cached, "a bake ran for a tier that cannot be shaded"
+    assert (mat.name, len(bpy.data.materials)) == before[:2]
+    mat.loom.preset = "plain"
+    print(f"loom-test: a ray-wave preset is refused before baking ({time.monotonic() - t0:.2f} s)")
 
     # 6. The API in every mode; without OSL nothing may leave a Script node behind.
     for mode in ("auto", "osl", "nodes"):

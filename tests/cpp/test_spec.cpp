@@ -172,6 +172,8 @@ TEST(Spec, WaveFields) {
   expect_one_error(d, {"$.wave.diffracton"});
   d["wave"] = {{"noise", 1}};
   expect_one_error(d, {"$.wave.noise"});
+  d["wave"] = {{"speckle_width_um", 5000}};
+  expect_one_error(d, {"$.wave.speckle_width_um", "[1, 1000]"});
   d["wave"] = {{"diffraction", false}, {"beam_waist_um", 25}, {"noise", false}};
   auto r = parse_spec(d);
   ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);

@@ -13,12 +13,12 @@
 // The text fits an exponential and inverts it; written as
 //   E(sigma) = (b e^sigma)^a   <=>   sigma(lambda) = log(c(lambda)^(1/a) / b)        (S.42)
 // (a < 0 in mm when sigma is in 1/mm), fitted by least squares on log E over the levels with
-// E >= kAbsorptionFitMinEnergy. Measured on our plies the curve is a mixture of exponentials
-// (one per path length) with that reflection floor, and S.42 misses it by about 0.2 in log E
-// (a mid grey comes out 20 % dark). Choice: Loom maps colours through the simulated curve
-// itself (monotone, interpolated linearly in log E between levels, inverted by bisection) and
-// reports S.42's (a, b) and what they would give next to it, so the paper's model stays
-// measurable. sigma is clamped to [0, the ply tables' largest level] so the shaders never
+// E >= max(kAbsorptionFitMinEnergy, twice the reflection floor). Measured on our plies the
+// curve is a mixture of exponentials (one per path length) above that floor, and S.42 misses
+// it by about 0.1 in log E (rms; the plain preset's mid grey 0.5 comes back as 0.43).
+// Choice: Loom maps colours through the simulated curve itself (monotone, interpolated linearly
+// in log E between levels, inverted by bisection) and reports S.42's (a, b) and what they would
+// give next to it, so the paper's model stays measurable. sigma is clamped to [0, the ply tables' largest level] so the shaders never
 // extrapolate. c(lambda) is the yarn colour's sigmoid spectrum (spectral_upsampling.h).
 #pragma once
 

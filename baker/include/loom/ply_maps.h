@@ -76,7 +76,10 @@ class SurfaceGeometry {
 };
 
 /// Bakes the ply-level maps of a (validated) spec whose yarn colours are already scene-linear.
-SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress = {});
+/// `horizons` false leaves the two horizon maps at zero (for a caller that copies them from an
+/// atlas of the same geometry).
+SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress = {},
+                              bool horizons = true);
 
 /// Per-ply ID hash in [0, 1): a deterministic integer hash (PCG-style) of its arguments.
 float ply_id_hash(int kind, int yarn, int stripe);

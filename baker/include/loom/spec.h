@@ -80,6 +80,10 @@ struct WaveSpec {
   double beam_waist_um = 10.0;
   /// Speckle noise tiles (section 5) baked for the shaders to modulate the ply scattering.
   bool noise = true;
+  /// w of the speckle PSD (speckle_noise.h): the width of the patch that scatters coherently,
+  /// um, [1, 1000]. Grains are about lambda / w radians wide. Defaults to the beam waist's
+  /// default (the same coherent patch).
+  double speckle_width_um = 10.0;
 };
 
 struct FabricSpec {

@@ -13,7 +13,7 @@
 // exp(-2 x^2 / w^2) (van Cittert-Zernike). In frequency f (cycles per radian of outgoing angle)
 // that is P_1D(lambda; f) = exp(-2 (lambda f / w)^2): speckle grains about lambda / w radians
 // wide, finer for wider coherent patches and shorter wavelengths. w is the spec's
-// `wave.beam_waist_um`, the same coherent patch the diffraction uses.
+// `wave.speckle_width_um` (by default the diffraction's beam waist, the same coherent patch).
 //
 // Wavelength bands: the tile's three channels hold lambda = 610, 550, 465 nm (near the
 // dominant wavelengths of Rec.709's primaries). All bands share one Z: the same surface seen at
