@@ -294,9 +294,10 @@ def load_atlas_image(atlas_dir: str, manifest: dict, name: str, label: str):
 # ======================================================================= the group
 
 
-def tier_problem(tier: str) -> str:
-    """Why an atlas of a model tier other than the surface one cannot be shaded here (yet)."""
-    return (f"a \"{tier}\" atlas: Loom cannot shade the {tier} tier in Blender yet "
+def tier_problem(tier: str, what: str = "atlas") -> str:
+    """Why an atlas (or spec) of a model tier other than the surface one cannot be shaded here
+    (yet)."""
+    return (f"a \"{tier}\" {what}: Loom cannot shade the {tier} tier in Blender yet "
             f"(bake the spec with \"model\": {{\"tier\": \"surface\"}})")
 
 

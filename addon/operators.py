@@ -29,7 +29,7 @@ def _request(context, mat) -> bakery.BakeRequest:
     exe = bakery.find_loom_bake(prefs.loom_bake_path if prefs else None)
     tier = bakery.spec_tier(exe, spec) if exe else None
     if tier and tier != "surface":
-        raise bakery.LoomBakeError(f"{spec}: {node_mode.tier_problem(tier)}")
+        raise bakery.LoomBakeError(f"{spec}: {node_mode.tier_problem(tier, 'spec')}")
     cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
     cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))
     os.makedirs(cache, exist_ok=True)
