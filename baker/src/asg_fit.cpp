@@ -448,6 +448,19 @@ AsgFitSettings asg_fit_settings(Quality q, bool refl) {
 AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, false); }
 AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, true); }
 
+void asg_sigma_interval(const std::vector<double>& sig, double sigma, int& k, double& t) {
+  k = 0, t = 0;
+  const int K = int(sig.size());
+  const double s = std::isfinite(sigma) ? std::max(sigma, 0.0) : 0.0;
+  if (K < 2) return;
+  if (s >= sig.back()) {
+    k = K - 2, t = 1;
+    return;
+  }
+  while (k + 2 < K && s > sig[size_t(k + 1)]) ++k;
+  t = (s - sig[size_t(k)]) / (sig[size_t(k + 1)] - sig[size_t(k)]);
+}
+
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma) {
   const int L = t.lobes;
   auto locate = [](const std::vector<double>& grid, double x, int& block, double& frac) {
@@ -466,15 +479,7 @@ std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h
   const int K = int(t.sigmas.size());
   int k = 0;
   double tt = 0;
-  const double sg = std::isfinite(sigma) ? std::max(sigma, 0.0) : 0.0;
-  if (K > 1) {
-    if (sg >= t.sigmas.back()) {
-      k = K - 2, tt = 1;
-    } else {
-      while (k + 2 < K && sg > t.sigmas[size_t(k + 1)]) ++k;
-      tt = (sg - t.sigmas[size_t(k)]) / (t.sigmas[size_t(k + 1)] - t.sigmas[size_t(k)]);
-    }
-  }
+  asg_sigma_interval(t.sigmas, sigma, k, tt);
   const int Nb = (int(t.h.size()) - 1) / 2;
   const double* sc = &t.scale[size_t((bm * Nb + bn) * K * L)];
   auto w = corner_weights(r, s);

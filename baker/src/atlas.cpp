@@ -24,6 +24,7 @@
 #include "loom/colour.h"
 #include "loom/diffraction_tables.h"
 #include "loom/double_layer.h"
+#include "loom/raywave_bsdf.h"
 #include "loom/shading.h"
 #include "loom/speckle_noise.h"
 #include "loom/ply_tables.h"
@@ -272,7 +273,12 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           errors.push_back(fmt::format("raywave.yarns.{}: missing or without \"files\"", yarn));
           continue;
         }
-        for (const char* f : {"high", "high_scale", "refl"}) {
+        if (y.value("node_layout", "") != kAsgNodeLayout)
+          errors.push_back(fmt::format("raywave.yarns.{}.node_layout: {} is not this baker's \"{}\" "
+                                       "(another baker's layout: re-bake the atlas)",
+                                       yarn, y.value("node_layout", json("missing")).dump(),
+                                       kAsgNodeLayout));
+        for (const char* f : {"high", "high_scale", "refl", "tint"}) {
           const json& name = y["files"].value(f, json());
           if (!name.is_string() || !tex.contains(name.get<std::string>()))
             errors.push_back(fmt::format("raywave.yarns.{}.files.{}: not a texture of the atlas",
@@ -288,6 +294,18 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           errors.push_back(fmt::format("raywave.double_layer.files.{}: not a texture of the atlas",
                                        f));
       }
+      // Shading tables at the yarn colours.
+      const json& sh = m["raywave"].value("shading", json());
+      for (const char* f : {"front", "back"}) {
+        const json& name = sh.is_object() && sh.contains("factors") && sh["factors"].is_object()
+                               ? sh["factors"].value(f, json())
+                               : json();
+        if (!name.is_string() || !tex.contains(name.get<std::string>()))
+          errors.push_back(fmt::format("raywave.shading.factors.{}: not a texture of the atlas", f));
+      }
+      if (!sh.is_object() || !sh.value("microfacet_albedo", json()).is_string() ||
+          !tex.contains(sh["microfacet_albedo"].get<std::string>()))
+        errors.push_back("raywave.shading.microfacet_albedo: not a texture of the atlas");
       // Noise: the listed tiles (none when wave.noise is off) are textures of the atlas.
       const json& noise = m["raywave"].value("noise", json());
       if (!noise.is_object() || !noise.contains("files") || !noise["files"].is_object())
@@ -329,7 +347,8 @@ namespace {
 
 /// Textures of a ray-wave atlas that do not depend on the yarn colours.
 bool colour_independent_texture(const std::string& name) {
-  for (const char* prefix : {"ply_high_", "ply_refl_", "double_layer_", "diffraction_", "noise_"})
+  for (const char* prefix : {"ply_high_", "ply_refl_", "double_layer_", "diffraction_", "noise_",
+                             "microfacet_albedo"})
     if (name.rfind(prefix, 0) == 0) return true;
   return false;
 }
@@ -469,8 +488,9 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     if (spec.tier == Tier::Raywave) {
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
                             "factors (S.20), aperture diffraction (S.34, S.35), speckle noise tiles "
-                            "(S.37, S.38) and absorption spectra from the yarn colours (S.42) baked; "
-                            "shading is not yet"},
+                            "(S.37, S.38), absorption spectra from the yarn colours (S.42) and the "
+                            "render tables at those colours baked; shading evaluates the lobes and "
+                            "double-layer factors; diffraction and noise at render time are not yet"},
                  {"yarns", json::object()}};
       // The ply tables do not depend on the yarn colour (colour is absorption, applied through
       // the tables' levels): a weft that differs only in colour shares the warp's tables.
@@ -535,14 +555,16 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           json entry = ply_tables_manifest(pt, yarn);
           add_table(asg_nodes_image(pt.high), entry["files"]["high"],
                     {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                    "f_high ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                    "f_high ASG corner nodes, two texels per (h node, lobe) in lobe-major columns, rows "
+                    "theta_i nodes "
                     "(layout: baker/include/loom/ply_tables.h)");
           add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
                     "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k "
                     "(layout: baker/include/loom/ply_tables.h)");
           add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
                     {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
-                    "f_refl ASG corner nodes, two texels per (h node, lobe), rows theta_i nodes "
+                    "f_refl ASG corner nodes, two texels per (h node, lobe) in lobe-major columns, rows "
+                    "theta_i nodes "
                     "(layout: baker/include/loom/ply_tables.h)");
           raywave["yarns"][yarn] = entry;
         }
@@ -721,6 +743,64 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         }
         raywave["absorption_seconds"] =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - at0).count();
+      }
+      // Render tables at the yarn colours (ray-wave shading: osl/include/loom/raywave_lobes.h,
+      // double_layer_factors.h), from the tables just written or copied.
+      {
+        if (opt.progress) opt.progress("shading tables", 0.0);
+        const auto st0 = std::chrono::steady_clock::now();
+        auto read_table = [&](const std::string& name) {
+          Image img;
+          std::string err;
+          if (!read_exr(tmp / (name + ".exr"), img, err))
+            throw std::runtime_error(fmt::format("reading back {}: {}", name, err));
+          return img;
+        };
+        std::array<double, 3> sig[2];
+        for (int i = 0; i < 2; ++i) {
+          const char* yarn = i == 0 ? "warp" : "weft";
+          json& entry = raywave["yarns"][yarn];
+          for (int c = 0; c < 3; ++c)
+            sig[i][size_t(c)] = entry["absorption"]["sigma_rgb_per_mm"][size_t(c)].get<double>();
+          const Image nodes = read_table(entry["files"]["high"].get<std::string>());
+          const Image scale = read_table(entry["files"]["high_scale"].get<std::string>());
+          const AsgTable high = asg_table_from_images(entry, "high", nodes, &scale);
+          const std::string name = std::string("ply_tint_") + yarn;
+          add_table(ply_tint_image(high, sig[i]), name, {"s_r", "s_g", "s_b"},
+                    "f_high lobe amplitude scale (Eq. S.10, S.11) at the yarn's absorption per "
+                    "colour channel, column lobe N' + block column, row block row "
+                    "(osl/include/loom/raywave_lobes.h)");
+          entry["files"]["tint"] = name;
+        }
+        std::array<double, 3> sig_layers;
+        for (int c = 0; c < 3; ++c)
+          sig_layers[size_t(c)] = 0.5 * (sig[0][size_t(c)] + sig[1][size_t(c)]);
+        const json& dl = raywave["double_layer"];
+        json shading = {{"factors", json::object()},
+                        {"microfacet_albedo", "microfacet_albedo"},
+                        {"layer_sigma_rgb_per_mm", sig_layers}};
+        for (const char* side : {"front", "back"}) {
+          DoubleLayerGrid g;
+          g.table = read_table(dl["files"][side].get<std::string>());
+          g.theta_count = dl["theta_count"];
+          g.phi_count = dl["phi_count"];
+          g.sigmas = dl["sigma_per_mm"].get<std::vector<double>>();
+          const std::string name = std::string("layer_factors_") + side;
+          add_table(layer_factors_image(g, sig_layers), name, {"r", "g", "b"},
+                    "double-layer factors B_total/B_t, F_total/F_t, F_total (Eq. S.21, S.22) at "
+                    "the yarns' absorption, three blocks of phi_count + 2 columns "
+                    "(osl/include/loom/double_layer_factors.h)");
+          shading["factors"][side] = name;
+        }
+        if (!textures.contains("microfacet_albedo")) {  // (copied on a colour-only change)
+          add_table(microfacet_albedo_image(), "microfacet_albedo", {"E_reflect", "E_refract", "0"},
+                    "directional albedos of Cycles' Beckmann reflection and refraction closures "
+                    "over (cos(N, V), sqrt(alpha)) (osl/include/loom/raywave_lobes.h)");
+        }
+        shading["seconds"] =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - st0).count();
+        raywave["shading"] = shading;
+        if (opt.progress) opt.progress("shading tables", 1.0);
       }
     }
     for (auto& [name, t] : textures.items()) {

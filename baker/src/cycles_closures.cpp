@@ -66,8 +66,9 @@ void orthonormals_tangent(vec3 N, vec3 T, vec3& X, vec3& Y) {
 }
 }  // namespace
 
-GGXReflection::GGXReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I)
-    : N_(N), Ng_(Ng), I_(I) {
+MicrofacetReflection::MicrofacetReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng,
+                                           vec3 I, Distribution d)
+    : N_(N), Ng_(Ng), I_(I), d_(d) {
   ax_ = std::clamp(alpha_x, 0.0f, 1.0f);
   ay_ = std::clamp(alpha_y, 0.0f, 1.0f);
   cos_NI_ = dot(N, I);
@@ -76,20 +77,74 @@ GGXReflection::GGXReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 
   // the frame of the tangent.
   orthonormals_tangent(N, ax_ == ay_ ? (std::fabs(N.z) < 0.9f ? vec3(0, 0, 1) : vec3(1, 0, 0)) : T,
                        X_, Y_);
-  lambda_I_ = valid_ ? ggx_lambda(ax_, ay_, {dot(X_, I), dot(Y_, I), cos_NI_}) : 0.0f;
+  lambda_I_ = valid_ ? lambda({dot(X_, I), dot(Y_, I), cos_NI_}) : 0.0f;
 }
 
-float GGXReflection::eval(vec3 L) const {
+float MicrofacetReflection::lambda(vec3 v) const {
+  if (d_ == Distribution::GGX) return ggx_lambda(ax_, ay_, v);
+  const float t = (ax_ * ax_ * v.x * v.x + ay_ * ay_ * v.y * v.y) / (v.z * v.z);
+  if (!(t >= 0.39f)) return 0.0f;
+  const float a = 1.0f / std::sqrt(t);
+  return ((0.396f * a - 1.259f) * a + 1.0f) / ((2.181f * a + 3.535f) * a);
+}
+
+float MicrofacetReflection::eval(vec3 L) const {
   float cos_NO = dot(N_, L), cos_NgO = dot(Ng_, L);
   bool is_transmission = cos_NO < 0.0f;
   if (!valid_ || (cos_NgO < 0.0f) != is_transmission || is_transmission) return 0.0f;
   vec3 H = normalize(I_ + L);
   vec3 h{dot(X_, H) / ax_, dot(Y_, H) / ay_, dot(N_, H)};
-  float l2 = dot(h, h);
-  // Anisotropic D (bsdf_aniso_D); for ax == ay it equals the isotropic bsdf_D.
-  float D = 1.0f / (float(M_PI) * ax_ * ay_ * l2 * l2);
-  float lO = ggx_lambda(ax_, ay_, {dot(X_, L), dot(Y_, L), cos_NO});
+  float D;
+  if (d_ == Distribution::GGX) {
+    // Anisotropic D (bsdf_aniso_D); for ax == ay it equals the isotropic bsdf_D.
+    float l2 = dot(h, h);
+    D = 1.0f / (float(M_PI) * ax_ * ay_ * l2 * l2);
+  } else {
+    float c2 = h.z * h.z;
+    D = std::exp(-(h.x * h.x + h.y * h.y) / c2) / (float(M_PI) * ax_ * ay_ * c2 * c2);
+  }
+  float lO = lambda({dot(X_, L), dot(Y_, L), cos_NO});
   return D / cos_NI_ * 0.25f / (1.0f + lambda_I_ + lO);
+}
+
+MicrofacetRefraction::MicrofacetRefraction(vec3 N, float alpha, float eta, vec3 Ng, vec3 I,
+                                           Distribution d)
+    : N_(N), Ng_(Ng), I_(I), d_(d) {
+  a_ = std::clamp(alpha, 0.0f, 1.0f);
+  eta_ = eta;
+  cos_NI_ = dot(N, I);
+  valid_ = cos_NI_ > 0 && a_ * a_ > 5e-7f && eta > 0;
+  lambda_I_ = valid_ ? lambda(cos_NI_) : 0.0f;
+}
+
+float MicrofacetRefraction::lambda(float cos_n) const {
+  // bsdf_lambda: sqr_alpha_tan_n = alpha^2 max(1 / cos^2 - 1, 0)
+  const float t = a_ * a_ * std::max(1.0f / (cos_n * cos_n) - 1.0f, 0.0f);
+  if (d_ == Distribution::GGX) return 0.5f * (std::sqrt(1.0f + t) - 1.0f);
+  if (!(t >= 0.39f)) return 0.0f;
+  const float a = 1.0f / std::sqrt(t);
+  return ((0.396f * a - 1.259f) * a + 1.0f) / ((2.181f * a + 3.535f) * a);
+}
+
+float MicrofacetRefraction::eval(vec3 L) const {
+  const float cos_NO = dot(N_, L);
+  if (!valid_ || cos_NO >= 0.0f || dot(Ng_, L) >= 0.0f) return 0.0f;
+  vec3 H = -(L * eta_ + I_);
+  const float len = length(H);
+  const float inv_len = len > 0 ? 1.0f / len : 0.0f;  // safe_divide
+  H = H * inv_len;
+  const float cos_NH = dot(N_, H);
+  const float c2 = std::min(cos_NH * cos_NH, 1.0f), a2 = a_ * a_;
+  float D;
+  if (d_ == Distribution::GGX) {
+    D = a2 / (float(M_PI) * (1.0f - c2 + a2 * c2) * (1.0f - c2 + a2 * c2));
+  } else {
+    D = 1.0f / (std::exp((1.0f - c2) / (c2 * a2)) * float(M_PI) * a2 * c2 * c2);
+  }
+  if (!std::isfinite(D)) return 0.0f;
+  const float common = D / cos_NI_ * (eta_ * inv_len) * (eta_ * inv_len) *
+                       std::fabs(dot(H, I_) * dot(H, L));
+  return common / (1.0f + lambda_I_ + lambda(cos_NO));
 }
 
 float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L) {

@@ -1,6 +1,7 @@
 #include "loom/evaluator.h"
 
 #include <cmath>
+#include <functional>
 #include <tbb/parallel_for.h>
 #include <mutex>
 
@@ -132,7 +133,8 @@ std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluat
   return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
 }
 
-MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, Backend backend) {
+MappingError mapping_error_loop(const Atlas& a, int texels, int views, int sphere_n,
+                                const std::function<MappingPair(const SurfacePoint&, vec3)>& setup) {
   const Image& ref = a.map("ply_frame");
   // Texels on a jittered-free stratified lattice; views on a spherical Fibonacci set.
   int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
@@ -143,14 +145,13 @@ MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, 
     V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
   }
   std::vector<vec3> L;
-  std::vector<float> dw;
   for (int i = 0; i < sphere_n; ++i)
     for (int j = 0; j < 2 * sphere_n; ++j) {
       double z = -1 + (i + 0.5) * 2.0 / sphere_n, r = std::sqrt(1 - z * z);
       double ph = (j + 0.5) * M_PI / sphere_n;
       L.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
-      dw.push_back(float((2.0 / sphere_n) * (M_PI / sphere_n) * std::fabs(z)));
     }
+  const double dw = (2.0 / sphere_n) * (M_PI / sphere_n);
   MappingError out;
   std::mutex mu;
   tbb::parallel_for(0, side * side, [&](int idx) {
@@ -160,13 +161,13 @@ MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, 
     double l1_sum = 0, l1_worst = 0, en_sum = 0, en_worst = 0;
     int counted = 0;
     for (const vec3& v : V) {
+      const MappingPair f = setup(p, v);
       double num = 0, den = 0, ec = 0;
-      for (size_t k = 0; k < L.size(); ++k) {
-        float fm = eval_bsdf(a, p, L[k], v, Evaluator::Model)[1];
-        float fc = eval_bsdf(a, p, L[k], v, Evaluator::Closures, backend)[1];
-        num += std::fabs(fc - fm) * dw[k];
-        den += fm * dw[k];
-        ec += fc * dw[k];
+      for (const vec3& l : L) {
+        const auto [fm, fc] = f(l);
+        num += std::fabs(fc - fm) * dw;
+        den += fm * dw;
+        ec += fc * dw;
       }
       if (den < 1e-6) continue;  // open gaps: nothing to compare
       double l1 = num / den, en = std::fabs(ec - den) / den;
@@ -181,6 +182,16 @@ MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, 
   });
   if (out.views > 0) out.mean_l1 /= out.views, out.mean_energy /= out.views;
   return out;
+}
+
+MappingError mapping_error(const Atlas& a, int texels, int views, int sphere_n, Backend backend) {
+  return mapping_error_loop(a, texels, views, sphere_n, [&](const SurfacePoint& p, vec3 v) {
+    return MappingPair([&a, p, v, backend](vec3 l) {
+      const float c = std::fabs(l.z);
+      return std::pair<float, float>(eval_bsdf(a, p, l, v, Evaluator::Model)[1] * c,
+                                     eval_bsdf(a, p, l, v, Evaluator::Closures, backend)[1] * c);
+    });
+  });
 }
 
 }  // namespace loom

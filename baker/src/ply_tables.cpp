@@ -1,6 +1,7 @@
 #include "loom/ply_tables.h"
 
 #include "loom/multi_ply.h"
+#include "loom/shading.h"
 
 #include <chrono>
 #include <cmath>
@@ -43,8 +44,8 @@ Image asg_nodes_image(const AsgTable& t) {
     for (int j = 0; j < cols; ++j)
       for (int l = 0; l < L; ++l) {
         const AsgLobe& q = t.node(i, j, l);
-        float* a = img.px(2 * (j * L + l), i);
-        float* b = img.px(2 * (j * L + l) + 1, i);
+        float* a = img.px(shading::asg_node_column(0, l, j, cols, L), i);
+        float* b = img.px(shading::asg_node_column(1, l, j, cols, L), i);
         a[0] = float(q.theta_z), a[1] = float(q.phi_z), a[2] = float(q.phi_xy), a[3] = float(q.mu1);
         b[0] = float(q.mu2), b[1] = float(q.c), b[2] = 0, b[3] = 0;
       }
@@ -79,7 +80,7 @@ json table_json(const AsgTable& t) {
 }
 std::vector<double> grid_from(const json& g, const std::string& what) {
   if (!g.is_object() || !g.contains("min") || !g.contains("max") || !g.contains("count") ||
-      !g["min"].is_number() || !g["max"].is_number() || !g["count"].is_number_unsigned())
+      !g["min"].is_number() || !g["max"].is_number() || !g["count"].is_number_integer() || g["count"].get<long long>() < 0)
     throw std::runtime_error(what + ": expected {min, max, count}");
   const double lo = g["min"], hi = g["max"];
   const size_t n = g["count"];
@@ -93,6 +94,7 @@ std::vector<double> grid_from(const json& g, const std::string& what) {
 
 json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
   return {{"yarn", yarn},
+          {"node_layout", kAsgNodeLayout},
           {"high", table_json(t.high)},
           {"refl", table_json(t.refl)},
           {"files",
@@ -119,9 +121,13 @@ AsgTable asg_table_from_images(const json& entry, const std::string& which, cons
                                const Image* scale) {
   if (!entry.is_object() || !entry.contains(which) || !entry[which].is_object())
     throw std::runtime_error(fmt::format("raywave table entry has no \"{}\"", which));
+  if (entry.value("node_layout", "") != kAsgNodeLayout)
+    throw std::runtime_error(fmt::format("raywave tables: node layout \"{}\" is not this baker's "
+                                         "\"{}\" (re-bake the atlas)",
+                                         entry.value("node_layout", "none"), kAsgNodeLayout));
   const json& j = entry[which];
   AsgTable t;
-  if (!j.contains("lobes") || !j["lobes"].is_number_unsigned() || j["lobes"] < 1 || j["lobes"] > 64)
+  if (!j.contains("lobes") || !j["lobes"].is_number_integer() || j["lobes"] < 1 || j["lobes"] > 64)
     throw std::runtime_error(which + ".lobes: expected an integer in [1, 64]");
   t.lobes = j["lobes"];
   t.theta_i = grid_from(j.value("theta_i", json()), which + ".theta_i");
@@ -145,8 +151,8 @@ AsgTable asg_table_from_images(const json& entry, const std::string& which, cons
   for (int i = 0; i < rows; ++i)
     for (int jj = 0; jj < cols; ++jj)
       for (int l = 0; l < L; ++l) {
-        const float* a = nodes.px(2 * (jj * L + l), i);
-        const float* b = nodes.px(2 * (jj * L + l) + 1, i);
+        const float* a = nodes.px(shading::asg_node_column(0, l, jj, cols, L), i);
+        const float* b = nodes.px(shading::asg_node_column(1, l, jj, cols, L), i);
         t.nodes.push_back(AsgLobe{a[0], a[1], a[2], a[3], b[0], b[1]});
       }
   const int Mb = rows - 1, Nb = cols - 1, K = int(t.sigmas.size());

@@ -12,6 +12,7 @@
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
+#include "loom/raywave_bsdf.h"
 #include "loom/ply_scattering.h"
 #include "loom/ply_tables.h"
 #include "loom/shading.h"
@@ -336,13 +337,17 @@ int main(int argc, char** argv) {
     }
     if (*mapping) {
       auto atlas = loom::load_atlas(mapping_atlas);
-      auto e = loom::mapping_error(atlas, mapping_texels, mapping_views);
+      const bool rw = atlas.manifest.value("tier", "") == "raywave";
+      auto e = rw ? loom::raywave_mapping_error(atlas, loom::load_raywave(atlas), mapping_texels,
+                                                mapping_views)
+                  : loom::mapping_error(atlas, mapping_texels, mapping_views);
       std::cout << json{{"mean_relative_l1", e.mean_l1},
                         {"worst_relative_l1", e.worst_l1},
                         {"mean_energy_error", e.mean_energy},
                         {"worst_energy_error", e.worst_energy},
                         {"texels", e.texels},
-                        {"pairs", e.views}}
+                        {"pairs", e.views},
+                        {"tier", rw ? "raywave" : "surface"}}
                        .dump()
                 << std::endl;
       return 0;
@@ -647,6 +652,25 @@ int main(int argc, char** argv) {
       vo = loom::shading::normalize(vo);
       auto atlas = loom::load_atlas(atlas_dir);
       auto e = evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model;
+      if (atlas.manifest.value("tier", "") == "raywave") {
+        // The ray-wave BSDF (baker/include/loom/raywave_bsdf.h): f_cos is Cycles' eval (f times
+        // the cosine), the quantity the ply scattering density gives directly.
+        if (average) {
+          std::cerr << "error: --average: not yet for ray-wave atlases; give --uv\n";
+          return 2;
+        }
+        const loom::RaywaveData rd = loom::load_raywave(atlas);
+        const std::array<float, 3> fc = loom::raywave_eval(
+            rd, loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi, vo, e);
+        const float c = std::max(std::fabs(vi.z), 1e-6f);
+        std::cout << json{{"f", {fc[0] / c, fc[1] / c, fc[2] / c}},
+                          {"f_cos", fc},
+                          {"evaluator", evaluator},
+                          {"tier", "raywave"}}
+                         .dump()
+                  << std::endl;
+        return 0;
+      }
       auto be = backend == "osl" ? loom::Backend::Osl : loom::Backend::Nodes;
       std::array<float, 3> f =
           average ? loom::eval_bsdf_average(atlas, vi, vo, e, be)

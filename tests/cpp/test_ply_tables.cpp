@@ -11,6 +11,7 @@
 #include "loom/speckle_noise.h"
 #include "loom/spectrum.h"
 #include "lobe_paths.h"
+#include "raywave_checks.h"
 #include "test_util.h"
 
 namespace fs = std::filesystem;
@@ -268,7 +269,8 @@ void colour_only_change_reuses_the_simulation() {
     EXPECT_EQ(a["textures"][t]["sha256"], b["textures"][t]["sha256"]) << t;
   EXPECT_EQ(a["raywave"]["simulation_key"], b["raywave"]["simulation_key"]);
   // The colour-dependent parts follow the new colours.
-  EXPECT_NE(a["textures"]["albedo_reflect"]["sha256"], b["textures"]["albedo_reflect"]["sha256"]);
+  for (const char* t : {"albedo_reflect", "ply_tint_warp", "layer_factors_front"})
+    EXPECT_NE(a["textures"][t]["sha256"], b["textures"][t]["sha256"]) << t;
   const json& ab = b["raywave"]["yarns"]["warp"]["absorption"];
   const loom::ColourConverter cc;
   const auto lin = cc.srgb_to_linear({0.1, 0.6, 0.2});
@@ -329,6 +331,10 @@ TEST(PlyTables, RaywaveAtlas) {
   {
     SCOPED_TRACE("validation");
     validation_rejects_a_raywave_manifest_without_tables();
+  }
+  {
+    SCOPED_TRACE("ray-wave shading");
+    loom::test::raywave_bsdf_atlas_checks(raywave_atlas());
   }
   {
     SCOPED_TRACE("colour-only change");

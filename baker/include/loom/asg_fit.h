@@ -81,6 +81,9 @@ AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s);
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma);
 /// S.8 / S.12: the fitted scattering density at ply-space direction wo.
 double asg_table_eval(const AsgTable& t, double theta_i, double h, double sigma, const Vec3d& wo);
+/// Eq. S.10: the absorption interval [sigmas[k], sigmas[k + 1]] and weight t of sigma, clamped
+/// to the grid (non-finite or negative sigma: 0); k = 0, t = 0 for a single level.
+void asg_sigma_interval(const std::vector<double>& sigmas, double sigma, int& k, double& t);
 /// Sum of S.1 over lobes.
 double asg_mixture_eval(const std::vector<AsgLobe>& lobes, const Vec3d& wo);
 

@@ -30,16 +30,44 @@ float bump_shadowing_term(vec3 Ns, vec3 N, vec3 L);
 vec3 ensure_valid_specular_reflection(vec3 Ng, vec3 I, vec3 N);
 float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L);
 
-/// The same closure set up once for a view I (Cycles' setup/eval split), for many evaluations.
-struct GGXReflection {
-  GGXReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I);
+enum class Distribution { GGX, Beckmann };
+
+/// microfacet(distribution, N, T, ax, ay, 1, 0) set up once for a view I (Cycles' setup/eval
+/// split), for many evaluations. Beckmann: D = exp(-(h_x^2 + h_y^2) / h_z^2) / (pi ax ay h_z^4)
+/// with h = H / (ax, ay, 1) (bsdf_aniso_D), Lambda by the rational approximation below Heitz 2014
+/// Eq. 69 (0 when alpha^2 tan^2 < 0.39), as bsdf_lambda_from_sqr_alpha_tan_n.
+struct MicrofacetReflection {
+  MicrofacetReflection(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I,
+                       Distribution d = Distribution::GGX);
   float eval(vec3 L) const;
   vec3 tangent() const { return X_; }  ///< the closure's alpha_x axis (T made orthogonal to N)
 
  private:
+  float lambda(vec3 v) const;
   vec3 N_, Ng_, I_, X_, Y_;
   float ax_, ay_, cos_NI_, lambda_I_;
   bool valid_;
+  Distribution d_;
+};
+using GGXReflection = MicrofacetReflection;
+
+/// microfacet(distribution, N, T, a, a, eta, 1): isotropic rough refraction, F = 1 (Cycles'
+/// refraction closures ignore anisotropy). I on N's side, L below: H = -(eta L + I) / |..|,
+/// eval = D(H) / <I.N> (eta / |eta L + I|)^2 |<H.I> <H.L>| / (1 + Lambda_I + Lambda_L)
+/// (bsdf_microfacet_eval, transmission branch); zero unless L is below both N and Ng. eta is the
+/// closure's ior as Cycles holds it (OSL's microfacet() passes it unchanged on both faces; SVM's
+/// Refraction BSDF node inverts it on back faces).
+struct MicrofacetRefraction {
+  MicrofacetRefraction(vec3 N, float alpha, float eta, vec3 Ng, vec3 I,
+                       Distribution d = Distribution::Beckmann);
+  float eval(vec3 L) const;
+
+ private:
+  float lambda(float cos_n) const;
+  vec3 N_, Ng_, I_;
+  float a_, eta_, cos_NI_, lambda_I_;
+  bool valid_;
+  Distribution d_;
 };
 
 }  // namespace loom::cycles

@@ -3,6 +3,8 @@
 // the same texels as the shaders and both through the shared shading math.
 #pragma once
 #include <array>
+#include <functional>
+#include <utility>
 
 #include "loom/atlas.h"
 #include "loom/shading.h"
@@ -50,5 +52,12 @@ struct MappingError {
 };
 MappingError mapping_error(const Atlas& a, int texels = 64, int views = 24, int sphere_n = 64,
                            Backend backend = Backend::Nodes);
+
+/// The loop of mapping_error() for any tier: `setup(p, V)` returns, for a surface point and a
+/// view, the function of the light direction L giving (model, closures), green channel, each
+/// times |cos| of L about the surface.
+using MappingPair = std::function<std::pair<float, float>(shading::vec3 L)>;
+MappingError mapping_error_loop(const Atlas& a, int texels, int views, int sphere_n,
+                                const std::function<MappingPair(const SurfacePoint&, shading::vec3)>& setup);
 
 }  // namespace loom

@@ -3,9 +3,11 @@
 //
 // Layout (rows counted from the bottom, as every Loom image in memory; files have row 0 on top):
 //   ply_high_<yarn>   corner nodes of the f_high fit (Eq. S.5-S.7): one row per theta_i node
-//                     i = 0 .. M', two RGBA texels per (h node j, lobe l) at column 2 (j L + l):
-//                     (theta_z, phi_z, phi_xy, mu1) and (mu2, c, 0, 0). Angles in radians, phi
-//                     unwrapped (interpolate them as stored).
+//                     i = 0 .. M', two RGBA texels per (h node j, lobe l), lobe-major: part 0
+//                     (theta_z, phi_z, phi_xy, mu1) at column l (N' + 1) + j, part 1
+//                     (mu2, c, 0, 0) at column (L + l) (N' + 1) + j (asg_node_column in
+//                     osl/include/loom/raywave_lobes.h), so that a bilinear look-up between
+//                     nodes is Eq. S.7. Angles in radians, phi unwrapped (interpolate as stored).
 //   ply_high_scale_<yarn>  scale-downs s_{l,k} (Eq. S.9): one channel, column bn L + l, row
 //                     bm K + k, per fitting block (bm, bn) and absorption level k.
 //   ply_refl_<yarn>   corner nodes of the f_refl fit, the ply_high layout with its own L.
@@ -23,6 +25,9 @@
 #include "loom/spec.h"
 
 namespace loom {
+
+/// The manifest's raywave.yarns.<yarn>.node_layout of the layout above.
+inline constexpr const char* kAsgNodeLayout = "lobe-major";
 
 struct PlyTables {
   AsgTable high, refl;

@@ -14,4 +14,6 @@ namespace loom::shading {
 #include "../../../osl/include/loom/asg.h"
 #include "../../../osl/include/loom/diffraction_table.h"
 #include "../../../osl/include/loom/speckle_noise.h"
+#include "../../../osl/include/loom/raywave_lobes.h"
+#include "../../../osl/include/loom/double_layer_factors.h"
 }  // namespace loom::shading

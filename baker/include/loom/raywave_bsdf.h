@@ -1,0 +1,103 @@
+// The ray-wave cloth BSDF at a shading point (ray-wave supplement sections 1-3 at render time):
+// the model itself, read from the exact tables of an atlas (the reference), and the mixture of
+// Cycles closures that the OSL shader and node mode build (osl/include/loom/raywave_lobes.h,
+// double_layer_factors.h), evaluated with Cycles' formulas (cycles_closures.h) from the render
+// tables, texel for texel as the shaders read them.
+//
+// Both return Cycles' eval quantity, the BSDF times the cosine, for light from wi seen from wo
+// (tangent frame, unit): by reciprocity the camera ray is the simulation's beam, and the ply
+// scattering density f (fraction of the beam's power per steradian) is that quantity directly
+// (raywave_lobes.h). At a point of the surface maps:
+//   f = (1 - c) [ B_total/B_t V(wo) V(wi) (f_refl + f_high)           wi on the viewer's side
+//               [ (1 - s) F_total/F_t (f_refl + f_high) + s F_total |wi.z| / pi   far side
+// with c the gap coverage (the open gap is a delta transmission, not part of f), V the horizon
+// visibility (front side only, as in the surface tier), f_refl and f_high the fitted lobes at
+// (theta_i, h) of the ply space and the yarn's per-channel absorption sigma_c (S.8, S.12), and
+// the double-layer factors of Eq. S.21 and S.22 at xi = wo for the channel's absorption.
+//
+// Not yet modelled at render time (the atlas holds the tables; the next slices of the shading
+// issue use them): aperture diffraction through gaps and past ply edges (the gap is a delta
+// here), speckle noise, the rays that cross a ply between its fibers (`unscattered`, a forward
+// delta), and a mask of where the beam meets both yarn layers (the factors apply on every yarn
+// point).
+#pragma once
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "loom/asg_fit.h"
+#include "loom/double_layer.h"
+#include "loom/evaluator.h"
+#include "loom/ply_tables.h"
+
+namespace loom {
+
+/// Render tables baked at the yarn colours (layouts in the shared headers).
+/// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high per block at sigma_rgb.
+Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb);
+
+/// A double-layer factor table of the atlas (double_layer_front/back) with its grids.
+struct DoubleLayerGrid {
+  Image table;  ///< B_t, F_t, B_total, F_total; column phi bin, row k theta_count + theta bin
+  int theta_count = 0, phi_count = 0;
+  std::vector<double> sigmas;
+};
+/// Eq. S.20's factors at direction xi (unit, xi.z >= 0) and absorption sigma (1/mm): bilinear in
+/// the (theta, phi) bin centres (phi periodic, theta clamped), linear in sigma between levels.
+DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const shading::vec3& xi,
+                                   double sigma);
+/// layer_factors_<side>: the three RGB blocks of double_layer_factors.h at sigma_rgb.
+Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb);
+
+/// The microfacet albedo LUT (raywave_lobes.h): E(cos(N, V), alpha) of Cycles' isotropic Beckmann
+/// reflection closure (F = 1), by quadrature in the half-vector domain with `n` x 4n points.
+Image microfacet_albedo_image(int n = 48);
+
+/// Everything the ray-wave BSDF reads from a loaded atlas.
+struct RaywaveData {
+  LoadedPlyTables yarn[2];                 ///< warp, weft
+  std::array<double, 3> sigma_rgb[2] = {};  ///< per yarn, 1/mm
+  DoubleLayerGrid layers[2];               ///< front (warp over weft), back
+  double blend = 0.5;                      ///< s of Eq. S.22
+  // Render tables, as the shaders read them.
+  const Image *nodes_high[2] = {}, *nodes_refl[2] = {}, *tint[2] = {}, *factors[2] = {};
+  const Image* microfacet_albedo = nullptr;
+};
+/// Throws std::runtime_error naming what is missing when the atlas is not a ray-wave atlas with
+/// render tables.
+RaywaveData load_raywave(const Atlas& a);
+
+/// One closure of the mixture (for tests and reports): kind 0 Beckmann reflection, 1 translucent,
+/// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA).
+struct RaywaveClosure {
+  int kind = 0;
+  shading::vec3 N, T;
+  float alpha_x = 1, alpha_y = 1;
+  std::array<float, 3> weight = {};
+};
+
+/// A shading point set up for one view wo (Cycles' setup/eval split): the lobes at (theta_i, h)
+/// and the double-layer factors (Model), or the closure mixture (Closures). Cheap to copy.
+class RaywavePoint {
+ public:
+  RaywavePoint(const RaywaveData& d, const SurfacePoint& p, shading::vec3 wo, Evaluator e);
+  /// f times cosine (header comment), RGB, for light from wi.
+  std::array<float, 3> eval(shading::vec3 wi) const;
+  /// The mixture the shaders emit (Closures; empty for Model).
+  const std::vector<RaywaveClosure>& closures() const;
+  struct Impl;
+
+ private:
+  std::shared_ptr<const Impl> impl_;
+};
+
+/// RaywavePoint(d, p, wo, e).eval(wi).
+std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, shading::vec3 wi,
+                                  shading::vec3 wo, Evaluator e);
+
+/// The closure-mapping error of mapping_error() (evaluator.h) for a ray-wave atlas: relative L1
+/// over the sphere of light directions of the eval quantity, green channel.
+MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels = 64,
+                                   int views = 24, int sphere_n = 96);
+
+}  // namespace loom

@@ -1,0 +1,400 @@
+#include "loom/raywave_bsdf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <memory>
+#include <stdexcept>
+#include <tbb/parallel_for.h>
+
+#include "loom/cycles_closures.h"
+
+namespace loom {
+
+using namespace shading;
+using nlohmann::json;
+
+namespace {
+
+/// Blender's linear image texture with EXTEND borders at (s, tv), tv from the bottom.
+void sample_clamped(const Image& img, float s, float tv, float out[4]) {
+  float px = std::clamp(s * float(img.width) - 0.5f, 0.0f, float(img.width - 1));
+  float py = std::clamp(tv * float(img.height) - 0.5f, 0.0f, float(img.height - 1));
+  if (!std::isfinite(px)) px = 0;
+  if (!std::isfinite(py)) py = 0;
+  int x0 = int(px), y0 = int(py);
+  int x1 = std::min(x0 + 1, img.width - 1), y1 = std::min(y0 + 1, img.height - 1);
+  float fx = px - float(x0), fy = py - float(y0);
+  for (int c = 0; c < img.channels; ++c) {
+    float a = img.px(x0, y0)[c] * (1 - fx) + img.px(x1, y0)[c] * fx;
+    float b = img.px(x0, y1)[c] * (1 - fx) + img.px(x1, y1)[c] * fx;
+    out[c] = a * (1 - fy) + b * fy;
+  }
+}
+
+/// The texel holding (s, tv) (a look-up at a texel centre).
+const float* texel_at(const Image& img, float s, float tv) {
+  int x = std::clamp(int(std::floor(s * float(img.width))), 0, img.width - 1);
+  int y = std::clamp(int(std::floor(tv * float(img.height))), 0, img.height - 1);
+  return img.px(x, y);
+}
+
+/// A double-layer ratio (Eq. S.21, S.22), 1 where the denominator vanishes, at most 10 (the
+/// geometric series of S.20 can make B_total / B_t large where B_t is tiny at grazing angles;
+/// the cap keeps such texels from turning into fireflies).
+float safe_ratio(double a, double b) {
+  if (!(b > 1e-6) || !std::isfinite(a)) return 1.0f;
+  return float(std::clamp(a / b, 0.0, 10.0));
+}
+
+}  // namespace
+
+Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb) {
+  const int Mb = int(high.theta_i.size() / 2), Nb = int(high.h.size() / 2), L = high.lobes,
+            K = int(high.sigmas.size());
+  Image img(L * Nb, Mb, 3);
+  for (int bm = 0; bm < Mb; ++bm)
+    for (int bn = 0; bn < Nb; ++bn)
+      for (int l = 0; l < L; ++l)
+        for (int c = 0; c < 3; ++c) {
+          int k;
+          double t;
+          asg_sigma_interval(high.sigmas, sigma_rgb[size_t(c)], k, t);
+          const double* sc = &high.scale[size_t((bm * Nb + bn) * K * L)];
+          double s = 1;
+          if (K > 1) s = (1 - t) * sc[k * L + l] + t * sc[(k + 1) * L + l];  // S.11
+          img.px(l * Nb + bn, bm)[c] = float(s);
+        }
+  return img;
+}
+
+DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const vec3& xi, double sigma) {
+  const int T = g.theta_count, P = g.phi_count;
+  const double theta = std::acos(std::clamp(double(xi.z), 0.0, 1.0)) * 180.0 / M_PI;
+  double tf = std::clamp(theta * T / 90.0 - 0.5, 0.0, double(T - 1));
+  double phi = std::fabs(xi.x) + std::fabs(xi.y) > 1e-9 ? std::atan2(xi.y, xi.x) * 180 / M_PI : 0;
+  if (!std::isfinite(tf)) tf = 0;
+  if (!std::isfinite(phi)) phi = 0;
+  if (phi < 0) phi += 360;
+  double pf = phi * P / 360.0 - 0.5;
+  int t0 = int(std::floor(tf)), p0 = int(std::floor(pf));
+  const double ft = tf - t0, fp = pf - p0;
+  const int t1 = std::min(t0 + 1, T - 1);
+  auto wrap = [P](int p) { return ((p % P) + P) % P; };
+  const int pa = wrap(p0), pb = wrap(p0 + 1);
+  int k;
+  double st;
+  asg_sigma_interval(g.sigmas, sigma, k, st);
+  const int K = int(g.sigmas.size());
+  double v[4] = {0, 0, 0, 0};
+  for (int kk = 0; kk < (K > 1 ? 2 : 1); ++kk) {
+    const double wk = K > 1 ? (kk == 0 ? 1 - st : st) : 1.0;
+    const int level = std::min(k + kk, K - 1);
+    auto at = [&](int t, int p) { return g.table.px(p, level * T + t); };
+    for (int c = 0; c < 4; ++c) {
+      double a = at(t0, pa)[c] * (1 - fp) + at(t0, pb)[c] * fp;
+      double b = at(t1, pa)[c] * (1 - fp) + at(t1, pb)[c] * fp;
+      v[c] += wk * (a * (1 - ft) + b * ft);
+    }
+  }
+  DoubleLayerFactors f;
+  f.Bt = v[0], f.Ft = v[1], f.Btotal = v[2], f.Ftotal = v[3];
+  return f;
+}
+
+Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb) {
+  const int T = g.theta_count, P = g.phi_count, W = P + 2;
+  Image img(3 * W, T, 3);
+  for (int t = 0; t < T; ++t)
+    for (int col = 0; col < W; ++col) {
+      const int p = ((col - 1) % P + P) % P;
+      const double th = (t + 0.5) * 90.0 / T * M_PI / 180, ph = (p + 0.5) * 360.0 / P * M_PI / 180;
+      const vec3 xi(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
+                    float(std::cos(th)));
+      for (int c = 0; c < 3; ++c) {
+        const DoubleLayerFactors f = double_layer_at(g, xi, sigma_rgb[size_t(c)]);
+        img.px(col, t)[c] = safe_ratio(f.Btotal, f.Bt);
+        img.px(W + col, t)[c] = safe_ratio(f.Ftotal, f.Ft);
+        img.px(2 * W + col, t)[c] = float(std::max(f.Ftotal, 0.0));
+      }
+    }
+  return img;
+}
+
+Image microfacet_albedo_image(int n) {
+  const int S = LOOM_MICROFACET_ALBEDO_SIZE;
+  Image img(S, S, 3);
+  const vec3 N(0, 0, 1), T(1, 0, 0);
+  const float eta = LOOM_RAYWAVE_ETA;
+  tbb::parallel_for(0, S * S, [&](int idx) {
+    const int i = idx % S, r = idx / S;
+    const double cv = std::max(double(i) / (S - 1), 1e-3);
+    const double sq = double(r) / (S - 1);
+    const double a = std::max(sq * sq, double(LOOM_RAYWAVE_MIN_ALPHA));
+    const vec3 V(float(std::sqrt(1 - cv * cv)), 0, float(cv));
+    const cycles::MicrofacetReflection refl(N, T, float(a), float(a), N, V,
+                                            cycles::Distribution::Beckmann);
+    const cycles::MicrofacetRefraction refr(N, float(a), eta, N, V, cycles::Distribution::Beckmann);
+    // Half vectors distributed as D(H) cos(theta_h) (midpoint rule in the sampling variables):
+    // E = int eval(L) dL = int eval(L) |dL/dH| / (D(H) cos theta_h) (D cos theta_h dH), with
+    // |dL/dH| = 4 (H.V) for reflection.
+    double sum_r = 0, sum_t = 0;
+    for (int u = 0; u < n; ++u)
+      for (int w = 0; w < 4 * n; ++w) {
+        const double x1 = (u + 0.5) / n, x2 = (w + 0.5) / (4.0 * n);
+        const double th = std::atan(a * std::sqrt(-std::log(1 - x1))), ph = 2 * M_PI * x2;
+        const double ct = std::cos(th), tt = std::tan(th);
+        const vec3 H(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
+                     float(ct));
+        const double hv = dot(H, V);
+        const double D = std::exp(-tt * tt / (a * a)) / (M_PI * a * a * std::pow(ct, 4));
+        if (hv > 0) sum_r += refl.eval(H * float(2 * hv) - V) * 4 * hv / (D * ct);
+        // Refraction: Cycles evaluates every L below the surface through its half vector
+        // H = -(eta L + V) / m, also where H.V < 0 (no validity check), and its D depends on
+        // cos^2(N, H) only; so every H on the sphere maps to one L = -(m H + V) / eta with
+        // m = -H.V + sqrt((H.V)^2 + eta^2 - 1), and |dL/dH| = m^2 / (eta^2 |H.L|).
+        for (const vec3& Hr : {H, vec3(H.x, H.y, -H.z)}) {
+          const double ci = dot(Hr, V);
+          const double m = -ci + std::sqrt(ci * ci + double(eta) * eta - 1);
+          const vec3 Lt = (Hr * float(m) + V) * (-1 / eta);
+          const double hl = std::fabs(dot(Hr, Lt));
+          if (hl < 1e-9) continue;
+          sum_t += refr.eval(Lt) * (m * m / (double(eta) * eta * hl)) / (D * ct);
+        }
+      }
+    img.px(i, r)[0] = float(sum_r / (double(n) * 4 * n));
+    img.px(i, r)[1] = float(sum_t / (double(n) * 4 * n));
+  });
+  return img;
+}
+
+RaywaveData load_raywave(const Atlas& a) {
+  RaywaveData d;
+  const json& m = a.manifest;
+  if (m.value("tier", "") != "raywave" || !m.contains("raywave"))
+    throw std::runtime_error("not a ray-wave atlas (bake with \"model\": {\"tier\": \"raywave\"})");
+  const json& rw = m["raywave"];
+  if (!rw.contains("shading") || !rw["shading"].is_object())
+    throw std::runtime_error("raywave.shading: missing (an atlas from before ray-wave shading: "
+                             "re-bake it)");
+  for (int y = 0; y < 2; ++y) {
+    const char* yarn = y == 0 ? "warp" : "weft";
+    d.yarn[y] = load_ply_tables(a, yarn);
+    const json& e = d.yarn[y].entry;
+    const json& s = e["absorption"]["sigma_rgb_per_mm"];
+    for (int c = 0; c < 3; ++c) d.sigma_rgb[y][size_t(c)] = s.at(size_t(c)).get<double>();
+    d.nodes_high[y] = &a.map(e["files"]["high"].get<std::string>());
+    d.nodes_refl[y] = &a.map(e["files"]["refl"].get<std::string>());
+    d.tint[y] = &a.map(e["files"]["tint"].get<std::string>());
+  }
+  const json& dl = rw["double_layer"];
+  d.blend = dl.value("blend", 0.5);
+  for (int side = 0; side < 2; ++side) {
+    const char* key = side == 0 ? "front" : "back";
+    DoubleLayerGrid& g = d.layers[side];
+    g.table = a.map(dl["files"][key].get<std::string>());
+    g.theta_count = dl["theta_count"];
+    g.phi_count = dl["phi_count"];
+    g.sigmas = dl["sigma_per_mm"].get<std::vector<double>>();
+    if (g.table.width != g.phi_count || g.table.height != g.theta_count * int(g.sigmas.size()))
+      throw std::runtime_error(fmt::format("raywave.double_layer: table {} is {}x{}, the grids say "
+                                           "{}x{}", key, g.table.width, g.table.height,
+                                           g.phi_count, g.theta_count * g.sigmas.size()));
+    d.factors[side] = &a.map(rw["shading"]["factors"][key].get<std::string>());
+  }
+  d.microfacet_albedo = &a.map(rw["shading"]["microfacet_albedo"].get<std::string>());
+  return d;
+}
+
+/// A shading point set up for one view (Cycles' setup/eval split).
+struct RaywavePoint::Impl {
+  Evaluator e = Evaluator::Model;
+  bool valid = false, back = false;
+  vec3 V, xp, yp, t;
+  float open = 0, vis_v = 1, s = 0.5f;
+  float hor[LOOM_HORIZON_DIRS] = {};
+  // model
+  std::vector<AsgLobe> refl, high[3];
+  std::array<float, 3> rho_b{}, rho_f{}, f_total{};
+  // closures
+  std::vector<cycles::MicrofacetReflection> mf;
+  std::vector<std::array<float, 3>> mf_w;
+  std::vector<cycles::MicrofacetRefraction> refr;
+  std::vector<std::array<float, 3>> refr_w;
+  std::array<float, 3> transl_w{};
+  std::vector<RaywaveClosure> list;
+};
+
+namespace {
+
+RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e) {
+  RaywavePoint::Impl q;
+  q.e = e;
+  if (!(std::isfinite(wo.x) && std::isfinite(wo.y) && std::isfinite(wo.z)) || wo.z == 0.0f)
+    return q;
+  q.valid = true;
+  q.back = wo.z < 0;
+  q.V = normalize(vec3(wo.x, wo.y, std::fabs(wo.z)));
+  q.t = p.t;
+  q.s = float(d.blend);
+  const int y = p.kind > 1.5f ? 1 : 0;
+  float theta_i, h;
+  raywave_ply_space(q.V, p.t, p.n_p, q.xp, q.yp, theta_i, h);
+  q.open = 1.0f - std::clamp(p.gap, 0.0f, 1.0f);
+  for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) q.hor[k] = p.horizon[k];
+  q.vis_v = q.back ? 1.0f : horizon_visibility(q.V, q.hor);
+  const int side = q.back ? 1 : 0;
+  std::array<double, 3> sig_layers;
+  for (int c = 0; c < 3; ++c)
+    sig_layers[size_t(c)] = 0.5 * (d.sigma_rgb[0][size_t(c)] + d.sigma_rgb[1][size_t(c)]);
+  if (e == Evaluator::Model) {
+    q.refl = asg_table_lobes(d.yarn[y].refl, theta_i, h, 0.0);
+    for (int c = 0; c < 3; ++c) {
+      q.high[c] = asg_table_lobes(d.yarn[y].high, theta_i, h, d.sigma_rgb[y][size_t(c)]);
+      const DoubleLayerFactors f = double_layer_at(d.layers[side], q.V, sig_layers[size_t(c)]);
+      q.rho_b[size_t(c)] = safe_ratio(f.Btotal, f.Bt);
+      q.rho_f[size_t(c)] = safe_ratio(f.Ftotal, f.Ft);
+      q.f_total[size_t(c)] = float(std::max(f.Ftotal, 0.0));
+    }
+    return q;
+  }
+  // Closures: the shaders' look-ups and shared functions.
+  const DoubleLayerGrid& g = d.layers[side];
+  float fac[3][4];
+  for (int b = 0; b < 3; ++b) {
+    float s, tv;
+    double_layer_uv(q.V, b, g.theta_count, g.phi_count, s, tv);
+    sample_clamped(*d.factors[side], s, tv, fac[b]);
+  }
+  for (int c = 0; c < 3; ++c) {
+    q.rho_b[size_t(c)] = fac[0][c];
+    q.rho_f[size_t(c)] = fac[1][c];
+    q.f_total[size_t(c)] = fac[2][c];
+  }
+  auto add_lobes = [&](const AsgTable& tab, const Image& nodes, const Image* tint) {
+    const int M = int(tab.theta_i.size()), N = int(tab.h.size()), L = tab.lobes;
+    const int rows = M / 2 + 1, cols = N / 2 + 1;
+    const float fi = asg_node_coord(theta_i, float(tab.theta_i.front()),
+                                    float(tab.theta_i.back()), M);
+    const float fj = asg_node_coord(h, float(tab.h.front()), float(tab.h.back()), N);
+    const int bm = asg_block_index(fi, M), bn = asg_block_index(fj, N);
+    for (int l = 0; l < L; ++l) {
+      float a[4], b[4], s, tv;
+      asg_node_uv(fi, fj, 0, l, L, rows, cols, s, tv);
+      sample_clamped(nodes, s, tv, a);
+      asg_node_uv(fi, fj, 1, l, L, rows, cols, s, tv);
+      sample_clamped(nodes, s, tv, b);
+      std::array<float, 3> tintc = {1, 1, 1};
+      if (tint) {
+        asg_tint_uv(bm, bn, l, L, rows - 1, cols - 1, s, tv);
+        const float* tp = texel_at(*tint, s, tv);
+        tintc = {tp[0], tp[1], tp[2]};
+      }
+      RaywaveClosure cl;
+      vec3 z;
+      cl.kind = raywave_lobe_closure(q.V, q.xp, q.yp, q.t, vec3(a[0], a[1], a[2]), a[3],
+                                     vec3(b[0], b[1], b[2]), z, cl.N, cl.T, cl.alpha_x, cl.alpha_y);
+      float E[4] = {0, 0, 0, 0};
+      if (cl.kind != 1) {
+        float ls, lt;
+        microfacet_albedo_uv(dot(cl.N, q.V), std::sqrt(cl.alpha_x * cl.alpha_y), ls, lt);
+        sample_clamped(*d.microfacet_albedo, ls, lt, E);
+      }
+      const float vis_z = q.back ? 1.0f : horizon_visibility(z, q.hor);
+      const vec3 w = raywave_lobe_weight(
+          cl.kind, asg_integral(a[3], b[0], b[1]), cl.kind == 0 ? E[0] : E[1],
+          vec3(tintc[0], tintc[1], tintc[2]), q.open, q.vis_v, vis_z,
+          vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]), vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s);
+      cl.weight = {w.x, w.y, w.z};
+      // Cycles' closure setup raises the normal where needed (ensure_valid_specular_reflection).
+      const vec3 Ng(0, 0, 1);
+      if (cl.kind == 0) {
+        q.mf.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.T,
+                          cl.alpha_x, cl.alpha_y, Ng, q.V, cycles::Distribution::Beckmann);
+        q.mf_w.push_back(cl.weight);
+      } else if (cl.kind == 2) {
+        q.refr.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.alpha_x,
+                            float(LOOM_RAYWAVE_ETA), Ng, q.V, cycles::Distribution::Beckmann);
+        q.refr_w.push_back(cl.weight);
+      } else {
+        for (int c = 0; c < 3; ++c) q.transl_w[size_t(c)] += cl.weight[size_t(c)];
+      }
+      q.list.push_back(cl);
+    }
+  };
+  const int y_ = y;
+  add_lobes(d.yarn[y_].refl, *d.nodes_refl[y_], nullptr);
+  add_lobes(d.yarn[y_].high, *d.nodes_high[y_], d.tint[y_]);
+  RaywaveClosure diffuse;
+  diffuse.kind = 1;
+  diffuse.N = vec3(0, 0, 1);
+  for (int c = 0; c < 3; ++c) {
+    diffuse.weight[size_t(c)] = q.open * q.s * q.f_total[size_t(c)];
+    q.transl_w[size_t(c)] += diffuse.weight[size_t(c)];
+  }
+  q.list.push_back(diffuse);
+  return q;
+}
+
+std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
+  const Evaluator e = q.e;
+  std::array<float, 3> out = {0, 0, 0};
+  if (!q.valid || !(std::isfinite(wi.x) && std::isfinite(wi.y) && std::isfinite(wi.z)))
+    return out;
+  const vec3 L = normalize(q.back ? vec3(wi.x, wi.y, -wi.z) : wi);
+  if (e == Evaluator::Model) {
+    const Vec3d lp{dot(L, q.xp), dot(L, q.yp), dot(L, q.t)};
+    const double fr = asg_mixture_eval(q.refl, lp);
+    for (int c = 0; c < 3; ++c) {
+      const double f = fr + asg_mixture_eval(q.high[c], lp);
+      double v;
+      if (L.z > 0) {
+        const float vis_l = q.back ? 1.0f : horizon_visibility(L, const_cast<float*>(q.hor));
+        v = q.open * q.vis_v * vis_l * q.rho_b[size_t(c)] * f;
+      } else {
+        v = q.open * ((1 - q.s) * q.rho_f[size_t(c)] * f +
+                      q.s * q.f_total[size_t(c)] * std::fabs(L.z) / M_PI);
+      }
+      out[size_t(c)] = float(v);
+    }
+    return out;
+  }
+  const vec3 n(0, 0, 1);
+  const float tr = cycles::translucent_eval(n, L, n);
+  for (int c = 0; c < 3; ++c) out[size_t(c)] = q.transl_w[size_t(c)] * tr;
+  for (size_t i = 0; i < q.refr.size(); ++i) {
+    const float g = q.refr[i].eval(L);
+    for (int c = 0; c < 3; ++c) out[size_t(c)] += q.refr_w[i][size_t(c)] * g;
+  }
+  for (size_t i = 0; i < q.mf.size(); ++i) {
+    const float g = q.mf[i].eval(L);
+    for (int c = 0; c < 3; ++c) out[size_t(c)] += q.mf_w[i][size_t(c)] * g;
+  }
+  return out;
+}
+
+}  // namespace
+
+RaywavePoint::RaywavePoint(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e)
+    : impl_(std::make_shared<const Impl>(prepare(d, p, wo, e))) {}
+
+std::array<float, 3> RaywavePoint::eval(vec3 wi) const { return eval_prepared(*impl_, wi); }
+
+const std::vector<RaywaveClosure>& RaywavePoint::closures() const { return impl_->list; }
+
+std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, vec3 wi, vec3 wo,
+                                  Evaluator e) {
+  return RaywavePoint(d, p, wo, e).eval(wi);
+}
+
+MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels, int views,
+                                   int sphere_n) {
+  return mapping_error_loop(a, texels, views, sphere_n, [&d](const SurfacePoint& p, vec3 v) {
+    const RaywavePoint pm(d, p, v, Evaluator::Model), pc(d, p, v, Evaluator::Closures);
+    return MappingPair([pm, pc](vec3 l) {  // eval is already BSDF times cosine
+      return std::pair<float, float>(pm.eval(l)[1], pc.eval(l)[1]);
+    });
+  });
+}
+
+}  // namespace loom

@@ -1,0 +1,271 @@
+// The ray-wave model at a shading point (ray-wave supplement sections 1 and 3): from the surface
+// maps and the view direction to the ply space of the simulation, the atlas coordinates of the
+// fitted ASG lobes (S.6, S.7, S.11) and of the double-layer factors (S.21, S.22), and each lobe's
+// Cycles closure.
+//
+// Ply space is the simulation's (baker/include/loom/ply_scattering.h): the ply runs along +z, the
+// beam comes from omega_i = (0, cos theta_i, sin theta_i), h is its offset along +x in ply radii.
+// At render time the beam is the camera ray (reciprocity: the lobes are built around the direction
+// towards the camera and describe the light directions), so for a view V, ply tangent t and ply
+// normal n_p (all in the cloth's tangent frame):
+//   z_p = t,  y_p = normalize(V - (V.t) t),  x_p = y_p x z_p,  theta_i = asin(V.t),
+//   h = n_perp . x_p,  n_perp = normalize(n_p - (n_p.t) t)
+// h is the impact parameter of the ray that meets the ply's (round) cross-section where its
+// normal is n_perp. The ply scattering density f (fraction of the beam's power per steradian
+// towards L) is what Cycles' closure eval (BSDF times cosine) must return for light from L: a sun
+// of irradiance E then gives radiance f E, and a ply whose f integrates to 1 reflects all light.
+//
+// Lobe tables in the atlas (ply_tables.h): the corner nodes of the block fit, one row per theta_i
+// node, lobe-major columns ((part L + lobe) (N' + 1) + j) so that a bilinear texture look-up at
+// fractional node coordinates is exactly Eq. S.7 (texel centres sit on the nodes; the look-up stays
+// between the first and the last centre of its lobe's columns, so no wrap mode is needed). The
+// per-block amplitude scale at the yarn's absorption (Eq. S.10, S.11, one value per colour channel)
+// is a separate, colour-dependent image (`ply_tint_<yarn>`) read at the block's texel centre.
+//
+// Closures (choices, measured by the closure emulator, loom-bake report):
+//   * a lobe whose centre z lies on the viewer's side of the cloth: an anisotropic Beckmann
+//     reflection microfacet("beckmann", N, T, a_x, a_y, 1, 0) with N = normalize(V + z), the half
+//     vector that reflects V into z, so the closure peaks at the lobe centre; T and the two
+//     roughnesses from the first-order match of the lobe's shape (asg_lobe_reflection). Beckmann,
+//     not GGX: its D is a Gaussian in the half vector's slope,
+//     exp(-tan^2 theta_h / a^2), the shape of the ASG's exp(-mu theta^2), where GGX's
+//     (1 + tan^2 / a^2)^-2 carries half its energy in long tails (measured); weight = the lobe's integral (asg_integral) over the closure's
+//     directional albedo E(cos(N, V), sqrt(a_x a_y)) (the atlas's microfacet_albedo LUT, F = 1,
+//     isotropic), so the closure carries the lobe's energy.
+//   * a lobe whose centre is on the far side: transmission. Cycles' refraction closures are
+//     isotropic and steered by an index of refraction: microfacet("beckmann", N, N, a, a, eta, 1)
+//     with the fixed eta = LOOM_RAYWAVE_ETA sends V to z when N = -(eta z + V) / m,
+//     m = |eta z + V| (Cycles' refraction half vector solved for N). That N faces the viewer only
+//     while the lobe is within acos(1 / eta) of straight through; there the closure is used, with
+//     the isotropic roughness of asg_refraction_alpha (the anisotropy is lost) and
+//     weight = integral / E_t(cos(N, V), a) (channel 1 of the LUT). Beyond that cone,
+//     or where N would fall below the surface or be raised by Cycles (its mirror direction of V
+//     below the surface), translucent(n_s) with the lobe's integral as weight (energy kept,
+//     direction lost).
+//   * weights divide by the closure's albedo, floored at LOOM_RAYWAVE_MIN_ALBEDO so that a
+//     closure at grazing angles (E near 0) cannot be scaled into fireflies.
+#ifndef LOOM_RAYWAVE_LOBES_H
+#define LOOM_RAYWAVE_LOBES_H
+#include "osl_compat.h"
+#include "asg.h"
+
+/// Texels per lobe node: (theta_z, phi_z, phi_xy, mu1) and (mu2, c, 0, 0).
+#define LOOM_RAYWAVE_PARTS 2
+#define LOOM_RAYWAVE_MIN_ALPHA 0.001
+/// The refraction closures' index of refraction (header comment).
+#define LOOM_RAYWAVE_ETA 6.0
+/// Floor of the albedo a lobe's integral is divided by (asg_microfacet_weight).
+#define LOOM_RAYWAVE_MIN_ALBEDO 0.05
+/// Smallest cos(N, V) of a refraction closure before the lobe falls back to translucent().
+#define LOOM_RAYWAVE_MIN_COS 0.05
+/// The microfacet albedo LUT (Beckmann; channel 0 reflection, 1 refraction at LOOM_RAYWAVE_ETA):
+/// LOOM_MICROFACET_ALBEDO_SIZE^2 texels over (cos(N, V), sqrt(alpha)) in [0, 1]^2.
+#define LOOM_MICROFACET_ALBEDO_SIZE 32
+
+/// The unit vector normal to unit n closest to one of two fixed axes (for degenerate inputs).
+LOOM_FN vector raywave_any_normal(vector n) {
+  vector a = vector(0.0, 0.0, 1.0);
+  if (fabs(n[2]) > 0.9)
+    a = vector(1.0, 0.0, 0.0);
+  return normalize(a - n * dot(a, n));
+}
+
+/// Ply space of a shading point (see the header comment). V, t, n_p unit, tangent frame. When V
+/// runs along the ply, y_p falls back to n_perp (the beam then meets the ply's top).
+LOOM_FN void raywave_ply_space(vector V, vector t, vector np, LOOM_OUT(vector) xp,
+                               LOOM_OUT(vector) yp, LOOM_OUT(float) theta_i, LOOM_OUT(float) h) {
+  vector n_perp = normalize(np - t * dot(np, t));
+  if (length(n_perp) < 0.5)
+    n_perp = raywave_any_normal(t);  // n_p along t (a degenerate map texel)
+  vector v_perp = V - t * dot(V, t);
+  float lv = length(v_perp);
+  if (lv > 1e-6)
+    yp = v_perp / lv;
+  else
+    yp = n_perp;
+  xp = cross(yp, t);
+  theta_i = asin(clamp(dot(V, t), -1.0, 1.0));
+  h = clamp(dot(n_perp, xp), -1.0, 1.0);
+}
+
+/// A ply-space direction a in the tangent frame.
+LOOM_FN vector raywave_from_ply(vector a, vector xp, vector yp, vector t) {
+  return a[0] * xp + a[1] * yp + a[2] * t;
+}
+
+/// Fractional node coordinate (S.6) of x on the uniform grid [lo, hi] of n (odd) samples: the
+/// nodes are every second sample, so the result lies in [0, (n - 1) / 2].
+LOOM_FN float asg_node_coord(float x, float lo, float hi, int n) {
+  float u = (clamp(x, lo, hi) - lo) / (hi - lo) * (n - 1);
+  if (!(u >= 0.0))
+    u = 0.0;
+  return 0.5 * u;
+}
+
+/// The block (S.3) that holds fractional node coordinate c, on a grid of n samples.
+LOOM_FN int asg_block_index(float c, int n) {
+  int b = (int)floor(c);
+  return max(0, min(b, (n - 1) / 2 - 1));
+}
+
+/// Column of (part, lobe, h node j) in a node image of `cols` = N' + 1 node columns.
+LOOM_FN int asg_node_column(int part, int lobe, int j, int cols, int lobes) {
+  return (part * lobes + lobe) * cols + j;
+}
+
+/// Image coordinates (s from the left, tv from the bottom, in [0, 1]) of the bilinear look-up
+/// that returns part `part` of lobe `lobe` at fractional node coordinates (fi, fj): Eq. S.7.
+LOOM_FN void asg_node_uv(float fi, float fj, int part, int lobe, int lobes, int rows, int cols,
+                         LOOM_OUT(float) s, LOOM_OUT(float) tv) {
+  float i = clamp(fi, 0.0, rows - 1.0);
+  float j = clamp(fj, 0.0, cols - 1.0);
+  s = (asg_node_column(part, lobe, 0, cols, lobes) + j + 0.5) / (LOOM_RAYWAVE_PARTS * lobes * cols);
+  tv = (i + 0.5) / rows;
+}
+
+/// Image coordinates of block (bm, bn)'s amplitude scale of lobe `lobe` in a ply_tint image of
+/// lobes nb columns (column lobe nb + bn) and mb rows.
+LOOM_FN void asg_tint_uv(int bm, int bn, int lobe, int lobes, int mb, int nb, LOOM_OUT(float) s,
+                         LOOM_OUT(float) tv) {
+  s = (lobe * nb + bn + 0.5) / (lobes * nb);
+  tv = (bm + 0.5) / mb;
+}
+
+/// The reflection closure of a lobe (centre z, axes x, y, bandwidths mu1, mu2; tangent frame) seen
+/// from V: N = normalize(V + z) and the anisotropic roughness that matches the lobe to first
+/// order. A half-vector turn e (normal to N) turns the reflected direction by
+/// dL = 2 (V.N) e + 2 (V.e) N, so the lobe's exponent mu1 (dL.x)^2 + mu2 (dL.y)^2 is the quadratic
+/// form e^T M e, M = mu1 g_x g_x^T + mu2 g_y g_y^T with g_a = P_N(2 (V.N) a + 2 (N.a) V) (P_N the
+/// projection normal to N). Beckmann's exponent is (e.T)^2 / a_x^2 + (e.B)^2 / a_y^2, so T is M's
+/// first eigenvector and a = 1 / sqrt(eigenvalue), clamped to [LOOM_RAYWAVE_MIN_ALPHA, 1]. At
+/// normal incidence this is a = 1 / (2 sqrt(mu)) along the lobe's own axes.
+LOOM_FN void asg_lobe_reflection(vector V, vector z, vector x, vector y, float mu1, float mu2,
+                                 LOOM_OUT(vector) N, LOOM_OUT(vector) T, LOOM_OUT(float) ax,
+                                 LOOM_OUT(float) ay) {
+  N = normalize(V + z);
+  if (length(N) < 0.5)
+    N = vector(0.0, 0.0, 1.0);
+  float vn = dot(V, N);
+  vector gx = 2.0 * vn * x + 2.0 * dot(N, x) * V;
+  vector gy = 2.0 * vn * y + 2.0 * dot(N, y) * V;
+  gx = gx - N * dot(gx, N);
+  gy = gy - N * dot(gy, N);
+  vector e1 = normalize(x - N * dot(x, N));
+  if (length(e1) < 0.5)
+    e1 = raywave_any_normal(N);
+  vector e2 = cross(N, e1);
+  float m1 = 0.0, m2 = 0.0;  // (NaN bandwidths give the broadest closure)
+  if (mu1 >= 0.0)
+    m1 = min(mu1, 1e6);
+  if (mu2 >= 0.0)
+    m2 = min(mu2, 1e6);
+  float x1 = dot(gx, e1), x2 = dot(gx, e2), y1 = dot(gy, e1), y2 = dot(gy, e2);
+  float a11 = m1 * x1 * x1 + m2 * y1 * y1;
+  float a12 = m1 * x1 * x2 + m2 * y1 * y2;
+  float a22 = m1 * x2 * x2 + m2 * y2 * y2;
+  float mean = 0.5 * (a11 + a22);
+  float dev = sqrt(0.25 * (a11 - a22) * (a11 - a22) + a12 * a12);
+  float psi = 0.5 * atan2(2.0 * a12, a11 - a22);
+  T = cos(psi) * e1 + sin(psi) * e2;
+  ax = clamp(1.0 / sqrt(max(mean + dev, 1e-12)), LOOM_RAYWAVE_MIN_ALPHA, 1.0);
+  ay = clamp(1.0 / sqrt(max(mean - dev, 1e-12)), LOOM_RAYWAVE_MIN_ALPHA, 1.0);
+}
+
+/// Refraction closure of a forward lobe with centre z seen from V: its normal N and the
+/// magnification eta / m of outgoing turns into half-vector turns. Returns 0 when the lobe is
+/// outside the cone the closure can reach (then use translucent()).
+LOOM_FN int asg_lobe_refraction_frame(vector V, vector z, LOOM_OUT(vector) N,
+                                      LOOM_OUT(float) magnification) {
+  vector hv = -(LOOM_RAYWAVE_ETA * z + V);
+  float m = length(hv);
+  N = vector(0.0, 0.0, 1.0);
+  magnification = 1.0;
+  if (m < 1e-6)
+    return 0;
+  N = hv / m;
+  magnification = LOOM_RAYWAVE_ETA / m;
+  if (!(dot(N, V) >= LOOM_RAYWAVE_MIN_COS && N[2] > 0.0))
+    return 0;
+  // Cycles raises a microfacet normal whose mirror direction of V dips below the surface
+  // (ensure_valid_specular_reflection, also for refraction closures): keep such lobes out of
+  // the refraction closure, whose aim would move.
+  vector R = 2.0 * dot(N, V) * N - V;
+  if (!(R[2] >= min(0.9 * V[2], 0.01)))
+    return 0;
+  return 1;
+}
+
+/// Beckmann roughness of the refraction closure (normal N) of a lobe centred at z: the half
+/// vector turns by eta / m times the outgoing turn projected normal to N, which scales areas by
+/// |N.z|; the isotropic closure keeps the lobe's solid angle: a = (eta / m) sqrt(|N.z|) /
+/// (mu1 mu2)^(1/4).
+LOOM_FN float asg_refraction_alpha(float mu1, float mu2, float magnification, vector N, vector z) {
+  float m1 = 1e-6, m2 = 1e-6;
+  if (mu1 >= 1e-6)
+    m1 = mu1;
+  if (mu2 >= 1e-6)
+    m2 = mu2;
+  float mu = sqrt(m1 * m2);
+  return clamp(magnification * sqrt(fabs(dot(N, z))) / sqrt(mu), LOOM_RAYWAVE_MIN_ALPHA, 1.0);
+}
+
+/// Image coordinates in the microfacet albedo LUT of cos(N, V) and alpha.
+LOOM_FN void microfacet_albedo_uv(float cos_nv, float alpha, LOOM_OUT(float) s, LOOM_OUT(float) tv) {
+  float n = LOOM_MICROFACET_ALBEDO_SIZE;
+  s = (0.5 + clamp(cos_nv, 0.0, 1.0) * (n - 1.0)) / n;
+  tv = (0.5 + sqrt(clamp(alpha, 0.0, 1.0)) * (n - 1.0)) / n;
+}
+
+/// Weight of a lobe's microfacet closure: its integral over the closure's albedo E.
+LOOM_FN float asg_microfacet_weight(float integral, float albedo) {
+  if (!(albedo >= 0.0) || !(integral > 0.0))
+    return 0.0;
+  return integral / max(albedo, LOOM_RAYWAVE_MIN_ALBEDO);
+}
+
+/// The closure of one lobe from its two node texels (p0 = theta_z, phi_z, phi_xy with mu1 in its
+/// alpha; p1 = mu2, c), seen from V in the ply space (xp, yp, t): kind 0 Beckmann reflection (N, T, ax,
+/// ay), 2 Beckmann refraction (N, ax = ay), 1 translucent about the surface normal. z is the lobe
+/// centre in the tangent frame (for its visibility).
+LOOM_FN int raywave_lobe_closure(vector V, vector xp, vector yp, vector t, color p0, float mu1,
+                                 color p1,
+                                 LOOM_OUT(vector) z, LOOM_OUT(vector) N, LOOM_OUT(vector) T,
+                                 LOOM_OUT(float) ax, LOOM_OUT(float) ay) {
+  vector lx, ly, lz;
+  asg_frame(p0[0], p0[1], p0[2], lx, ly, lz);
+  z = raywave_from_ply(lz, xp, yp, t);
+  vector x = raywave_from_ply(lx, xp, yp, t);
+  vector y = raywave_from_ply(ly, xp, yp, t);
+  N = vector(0.0, 0.0, 1.0);
+  T = vector(1.0, 0.0, 0.0);
+  ax = 1.0;
+  ay = 1.0;
+  if (z[2] > 0.0) {
+    asg_lobe_reflection(V, z, x, y, mu1, p1[0], N, T, ax, ay);
+    return 0;
+  }
+  float mag;
+  if (asg_lobe_refraction_frame(V, z, N, mag)) {
+    ax = asg_refraction_alpha(mu1, p1[0], mag, N, z);
+    ay = ax;
+    return 2;
+  }
+  N = vector(0.0, 0.0, 1.0);
+  return 1;
+}
+
+/// Colour weight of a lobe's closure: its integral (asg_integral(mu1, mu2, c)) over the closure's
+/// albedo E (ignored for translucent), times the per-channel tint (Eq. S.11), the open fraction,
+/// and the double-layer factors (Eq. S.21 for reflection, (1 - s) F_total / F_t of Eq. S.22 for
+/// forward lobes) and, for reflection, the view- and light-side visibilities.
+LOOM_FN color raywave_lobe_weight(int kind, float integral, float albedo, color tint, float open,
+                                  float vis_v, float vis_z, color rho_b, color rho_f, float s) {
+  if (kind == 0)
+    return asg_microfacet_weight(integral, albedo) * open * vis_v * vis_z * tint * rho_b;
+  float w = integral;
+  if (kind == 2)
+    w = asg_microfacet_weight(integral, albedo);
+  return w * open * (1.0 - s) * tint * rho_f;
+}
+
+#endif
