@@ -14,9 +14,11 @@ import os
 import bpy
 
 from . import bakery, colour_config, material as _material, node_mode
+from . import scene_needs as _scene_needs
 from .bakery import LoomBakeError as LoomError, read_manifest
 
-__all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign"]
+__all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign",
+           "scene_needs"]
 
 _ADDON = __package__
 
@@ -111,3 +113,14 @@ def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, 
 def last_assign() -> dict:
     """{material, mode ('OSL'|'NODES'), reason, scale, atlas, warning} of the last assign()."""
     return dict(_last)
+
+
+def scene_needs(obj, yarn_um: float, ply_um: float, plies: int, repeat_um: float,
+                repeats_per_uv: float, scene=None) -> dict:
+    """What ``obj`` needs in ``scene`` (default: the context's): ``{"tier": "surface" |
+    "raywave", "transmission", "double_layer", "diffraction", "multi_ply", "yarn_px", "ply_px",
+    "reasons": [...]}`` from the camera's view of its yarns and plies and from the lights behind
+    it (``loom/scene_needs.py``). Sizes are the spec's, in micrometres; ``repeat_um`` is the
+    weave repeat's length along u and ``repeats_per_uv`` the material's Scale."""
+    return _scene_needs.scene_needs(obj, scene or bpy.context.scene, yarn_um, ply_um, plies,
+                                    repeat_um, repeats_per_uv).as_dict()

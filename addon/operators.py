@@ -1,4 +1,5 @@
-"""Operators: bake & assign (modal, non-blocking), cancel, assign an existing atlas, new material.
+"""Operators: bake & assign (modal, non-blocking), cancel, assign an existing atlas, new material,
+check what the scene needs (scene_needs.py).
 
 Bake & Assign runs loom-bake as a subprocess (bakery.BakeJob) and polls it from a window timer,
 so Blender stays responsive; progress goes to the window manager's progress cursor, the status
@@ -12,7 +13,7 @@ import bpy
 from bpy.props import StringProperty
 from bpy.types import Operator
 
-from . import bakery, colour_config, material, node_mode, preferences
+from . import bakery, colour_config, material, node_mode, preferences, scene_needs
 
 
 def _request(context, mat) -> bakery.BakeRequest:
@@ -260,4 +261,39 @@ class LOOM_OT_material_new(Operator):
         return {"FINISHED"}
 
 
-classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new)
+class LOOM_OT_scene_needs(Operator):
+    """Work out which model tier and components this cloth needs in this scene (camera
+    distance and resolution, lights behind it), from the material's atlas"""
+
+    bl_idname = "loom.scene_needs"
+    bl_label = "Check Scene Needs"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        mat = context.material
+        return (_poll_loom_material(cls, context) and bool(mat.loom.atlas_dir)
+                and context.object is not None and context.object.type == "MESH")
+
+    def execute(self, context):
+        s = context.material.loom
+        try:
+            manifest = bakery.read_manifest(bpy.path.abspath(s.atlas_dir))
+            yarn = manifest["spec"]["warp"]
+            repeat_um = float(manifest["repeat"]["size_um"][0])
+        except (bakery.LoomBakeError, OSError, KeyError, IndexError, TypeError, ValueError) as exc:
+            self.report({"ERROR"}, f"Loom: cannot read the atlas's spec: {exc}")
+            return {"CANCELLED"}
+        obj = context.object
+        repeats = (material.physical_repeats(obj, manifest, s.size_factor)
+                   if s.scale_mode == "PHYSICAL" else s.repeats)
+        needs = scene_needs.scene_needs(obj, context.scene, float(yarn["yarn_diameter_um"]),
+                                        float(yarn["ply_diameter_um"]), int(yarn["plies"]),
+                                        repeat_um, repeats)
+        s.needs_report = "\n".join([f"Needs: {needs.tier} tier"] + needs.reasons)
+        self.report({"INFO"}, f"Loom: {needs.tier} tier; " + "; ".join(needs.reasons))
+        return {"FINISHED"}
+
+
+classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new,
+           LOOM_OT_scene_needs)

@@ -89,6 +89,8 @@ class LoomMaterialSettings(PropertyGroup):
                               description="The atlas this material reads")
     mode_used: StringProperty(name="Mode Used")
     status: StringProperty(name="Status")
+    needs_report: StringProperty(name="Scene Needs",
+                                 description="What Check Scene Needs found, one finding a line")
 
 
 classes = (LoomMaterialSettings,)

@@ -70,6 +70,9 @@ class MATERIAL_PT_loom(Panel):
                 box.label(text=f"Mode: {s.mode_used.lower()}")
             if s.status:
                 box.label(text=s.status)
+            box.operator("loom.scene_needs", icon="VIEWZOOM")
+            for line in s.needs_report.splitlines():
+                box.label(text=line)
             # A Script node renders black where OSL cannot run (e.g. after switching the
             # device to a non-OptiX GPU): say so and offer the rebuild.
             if s.mode_used == "OSL":

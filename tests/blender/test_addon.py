@@ -20,7 +20,7 @@ import bpy  # noqa: E402
 REPO_MODULE = "loom_ziptest"
 MODULE = f"bl_ext.{REPO_MODULE}.loom"
 CLASSES = ("LOOM_OT_bake_assign", "LOOM_OT_bake_cancel", "LOOM_OT_assign_atlas",
-           "LOOM_OT_material_new", "MATERIAL_PT_loom")
+           "LOOM_OT_material_new", "LOOM_OT_scene_needs", "MATERIAL_PT_loom")
 WM_PROPS = ("loom_bake_running", "loom_bake_cancel", "loom_bake_progress", "loom_bake_status")
 
 
