@@ -14,10 +14,12 @@ import os
 
 import bpy
 
-from . import node_mode, osl_paths, osl_source
+from . import node_mode, node_mode_raywave, osl_paths, osl_source
 from .bakery import LoomBakeError, read_manifest
 
 OSL_TEXT_NAME = osl_source.SURFACE_SHADER
+# The material's Loom node: the group (node mode) or the Script node (OSL mode), of either tier.
+NODE_NAMES = ("Loom Surface", "Loom Surface (OSL)")
 MODES = ("AUTO", "OSL", "NODES")
 MANAGED_PROP = "loom"  # Material.loom (PropertyGroup) once registered; see is_loom_material
 
@@ -131,12 +133,23 @@ def _clear_tree(mat):
 
 
 def check_tier(manifest: dict, atlas_dir: str) -> None:
-    """Raise LoomBakeError for an atlas whose model tier cannot be shaded here yet (a ray-wave
-    atlas holds the baker-side ply tables only): say so rather than render something else under
-    its name. Called before any material or node tree is touched."""
+    """Raise LoomBakeError for an atlas that cannot be shaded here (a tier the add-on does not
+    know, a ray-wave atlas without render tables or from an older loom-bake): say so rather than
+    render something else under its name. Called before any material or node tree is touched."""
     tier = manifest.get("tier", "surface")
-    if tier != "surface":
+    if tier == "raywave":
+        problem = node_mode_raywave.atlas_problem(manifest)
+        if problem:
+            raise LoomBakeError(f"{atlas_dir}: ray-wave atlas: {problem}")
+    elif tier != "surface":
         raise LoomBakeError(f"{atlas_dir}: {node_mode.tier_problem(tier)}")
+
+
+def shader_file(manifest: dict) -> str:
+    """The OSL shader of the atlas's tier."""
+    if manifest.get("tier", "surface") == "raywave":
+        return node_mode_raywave.SHADER
+    return osl_source.SURFACE_SHADER
 
 
 def build_material(mat, atlas_dir: str, mode: str = "AUTO", scale: float = 1.0, scene=None,
@@ -174,12 +187,14 @@ def build_material(mat, atlas_dir: str, mode: str = "AUTO", scale: float = 1.0, 
 
 
 def _build_nodes(mat, atlas_dir, manifest, scale, interpolation):
-    group = node_mode.build_surface_group(atlas_dir, manifest, interpolation=interpolation,
-                                          name=_unique_group_name(atlas_dir, manifest))
+    raywave = manifest.get("tier", "surface") == "raywave"
+    build = node_mode_raywave.build_raywave_group if raywave else node_mode.build_surface_group
+    group = build(atlas_dir, manifest, interpolation=interpolation,
+                  name=_unique_group_name(atlas_dir, manifest))
     nt, out = _clear_tree(mat)
     gnode = nt.nodes.new("ShaderNodeGroup")
     gnode.node_tree = group
-    gnode.name = "Loom Surface"
+    gnode.name = NODE_NAMES[0]
     gnode.label = group.name
     gnode.width = 260
     gnode.inputs["Scale"].default_value = scale
@@ -187,8 +202,12 @@ def _build_nodes(mat, atlas_dir, manifest, scale, interpolation):
 
 
 def _unique_group_name(atlas_dir: str, manifest: dict) -> str:
-    """"Loom Surface (<name>)", unless a group of that name belongs to another atlas."""
-    base = node_mode.group_name(manifest)
+    """"Loom Surface (<name>)" ("Loom Ray-wave (<name>)"), unless a group of that name belongs
+    to another atlas."""
+    if manifest.get("tier", "surface") == "raywave":
+        base = node_mode_raywave.group_name(manifest)
+    else:
+        base = node_mode.group_name(manifest)
     g = bpy.data.node_groups.get(base)
     if g is None or g.get("loom_atlas") in (None, atlas_dir):
         return base
@@ -200,11 +219,11 @@ class OSLBuildError(RuntimeError):
     pass
 
 
-def _osl_text():
-    src = osl_source.flattened_surface_shader()
-    text = bpy.data.texts.get(OSL_TEXT_NAME)
+def _osl_text(shader: str):
+    src = osl_source.flattened_shader(shader)
+    text = bpy.data.texts.get(shader)
     if text is None:
-        text = bpy.data.texts.new(OSL_TEXT_NAME)
+        text = bpy.data.texts.new(shader)
     if text.as_string() != src:
         text.from_string(src)
     text.use_fake_user = False
@@ -217,12 +236,12 @@ def _build_osl(mat, atlas_dir, manifest, scale):
     except ImportError as exc:
         raise OSLBuildError(f"cannot import Cycles' OSL helpers: {exc}") from exc
     try:
-        text = _osl_text()
+        text = _osl_text(shader_file(manifest))
     except OSError as exc:
         raise OSLBuildError(str(exc)) from exc
     nt, out = _clear_tree(mat)
     script = nt.nodes.new("ShaderNodeScript")
-    script.name = "Loom Surface (OSL)"
+    script.name = NODE_NAMES[1]
     script.mode = "INTERNAL"
     script.script = text
     script.location = (100, 0)
@@ -235,8 +254,15 @@ def _build_osl(mat, atlas_dir, manifest, scale):
     if not ok or "BSDF" not in script.outputs:
         nt.nodes.remove(script)  # never leave a Script node that cannot run
         raise OSLBuildError("; ".join(messages) or "the shader did not compile")
-    files = {name: tex["file"] for name, tex in manifest["textures"].items()
-             if name in script.inputs}
+    if manifest.get("tier", "surface") == "raywave":
+        params, values = node_mode_raywave.osl_parameters(manifest)
+        for name, value in values.items():
+            if name in script.inputs:
+                script.inputs[name].default_value = value
+    else:
+        params = {name: name for name in manifest["textures"]}
+    files = {param: manifest["textures"][name]["file"] for param, name in params.items()
+             if param in script.inputs}
     for name, file in files.items():
         script.inputs[name].default_value = os.path.join(atlas_dir, file)
     osl_paths.remember(script, atlas_dir, files)  # re-resolved before every render
@@ -261,7 +287,7 @@ def set_scale(mat, scale: float) -> bool:
     if mat is None or not mat.use_nodes:
         return False
     for node in mat.node_tree.nodes:
-        if node.name in ("Loom Surface", "Loom Surface (OSL)") and "Scale" in node.inputs:
+        if node.name in NODE_NAMES and "Scale" in node.inputs:
             node.inputs["Scale"].default_value = scale
             return True
     return False

@@ -64,9 +64,10 @@ TRANSCRIBED_FROM = {
 }
 
 
-def constants() -> dict[str, float]:
+def constants(required=REQUIRED_CONSTANTS) -> dict[str, float]:
+    """The headers' constants; raise naming any of ``required`` that the headers lack."""
     c = osl_source.header_constants()
-    missing = [k for k in REQUIRED_CONSTANTS if k not in c]
+    missing = [k for k in required if k not in c]
     if missing:
         raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
                            f"add-on's osl/ sources present? {osl_source.osl_dir()})")
@@ -313,6 +314,10 @@ def atlas_problem(atlas_dir: str) -> str | None:
     except (OSError, ValueError, KeyError) as exc:
         return f"unreadable manifest: {exc}"
     tier = manifest.get("tier", "surface")
+    if tier == "raywave":
+        from . import node_mode_raywave
+
+        return node_mode_raywave.atlas_problem(manifest)
     if tier != "surface":
         return tier_problem(tier)
     missing = [m for m in (*MAPS, LUT) if m not in textures]
@@ -505,11 +510,11 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                 total = node.outputs["BSDF"]
                 continue
             add = b.new("ShaderNodeAddShader")
-            group.links.new(total, add.inputs[0])
-            group.links.new(node.outputs["BSDF"], add.inputs[1])
+            b.connect(total, add.inputs[0])
+            b.connect(node.outputs["BSDF"], add.inputs[1])
             total = add.outputs["Shader"]
         gout = b.new("NodeGroupOutput")
-        group.links.new(total, gout.inputs["BSDF"])
+        b.connect(total, gout.inputs["BSDF"])
 
     b.layout()
     return group

@@ -42,6 +42,9 @@ class Builder:
         self._separate: dict[tuple[str, str], object] = {}
         self._blocks: list[tuple[object | None, list]] = [(None, [])]
         self._order: dict[str, int] = {}
+        # node name -> names of the nodes feeding it (kept here: NodeSocket.links scans every
+        # link of the tree, which makes a layout of a large group quadratic)
+        self._inputs: dict[str, set[str]] = {}
 
     # -- structure
     @contextmanager
@@ -75,6 +78,7 @@ class Builder:
         """Feed ``value`` (an expression, a number or a 3-tuple) into an input socket."""
         if isinstance(value, Expr):
             self.tree.links.new(value.socket, socket)
+            self._inputs.setdefault(socket.node.name, set()).add(value.socket.node.name)
         elif isinstance(value, (tuple, list)):
             dv = socket.default_value
             if len(dv) == 4 and len(value) == 3:  # colour sockets are RGBA
@@ -82,6 +86,11 @@ class Builder:
             socket.default_value = value
         else:
             socket.default_value = float(value)
+
+    def connect(self, from_socket, to_socket) -> None:
+        """Link two sockets (shader sockets, group sockets), recorded for the layout."""
+        self.tree.links.new(from_socket, to_socket)
+        self._inputs.setdefault(to_socket.node.name, set()).add(from_socket.node.name)
 
     def label(self, expr: Expr, text: str) -> Expr:
         """Name a quantity: the label of the node that computes it (shown on hidden nodes)."""
@@ -117,10 +126,9 @@ class Builder:
             depth: dict[str, int] = {}
             for n in members:  # creation order is a topological order
                 d = 0
-                for s in n.inputs:
-                    for lk in s.links:
-                        if lk.from_node.name in names:
-                            d = max(d, depth.get(lk.from_node.name, 0) + 1)
+                for src in self._inputs.get(n.name, ()):
+                    if src in names:
+                        d = max(d, depth.get(src, 0) + 1)
                 depth[n.name] = d
             cols: dict[int, list] = {}
             for n in members:
@@ -190,6 +198,8 @@ _PY_MATH = {
     "ARCTAN2": math.atan2,
     "SINE": math.sin,
     "COSINE": math.cos,
+    "ARCSINE": lambda a: math.asin(a) if -1.0 <= a <= 1.0 else 0.0,
+    "ARCCOSINE": lambda a: math.acos(a) if -1.0 <= a <= 1.0 else 0.0,
 }
 
 
@@ -364,6 +374,24 @@ def floor(x):
 
 def atan2(y, x):
     return math_op("ARCTAN2", y, x)
+
+
+def sin(x):
+    return math_op("SINE", x)
+
+
+def cos(x):
+    return math_op("COSINE", x)
+
+
+def asin(x):
+    """Math ARCSINE: 0 outside [-1, 1] (callers clamp, as the headers do)."""
+    return math_op("ARCSINE", x)
+
+
+def acos(x):
+    """Math ARCCOSINE: 0 outside [-1, 1] (callers clamp, as the headers do)."""
+    return math_op("ARCCOSINE", x)
 
 
 def max_(a, b_):

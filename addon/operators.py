@@ -25,11 +25,11 @@ def _request(context, mat) -> bakery.BakeRequest:
             raise bakery.LoomBakeError("no spec file chosen")
         spec = bpy.path.abspath(s.spec_path)
     prefs = preferences.get(context)
-    # A spec of a tier the add-on cannot shade yet (the sample fabrics are ray-wave presets) is
-    # refused before a bake that could take minutes, with the same reason assigning would give.
+    # A spec of a tier the add-on cannot shade is refused before a bake that could take
+    # minutes, with the same reason assigning would give.
     exe = bakery.find_loom_bake(prefs.loom_bake_path if prefs else None)
     tier = bakery.spec_tier(exe, spec) if exe else None
-    if tier and tier != "surface":
+    if tier and tier not in ("surface", "raywave"):
         raise bakery.LoomBakeError(f"{spec}: {node_mode.tier_problem(tier, 'spec')}")
     cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
     cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))

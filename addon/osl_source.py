@@ -14,7 +14,7 @@ import re
 SURFACE_SHADER = "loom_cloth_surface.osl"
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"\s*$')
-_DEFINE = re.compile(r"^\s*#\s*define\s+(LOOM_[A-Z0-9_]+)\s+([-+0-9.eE]+)\s*$")
+_DEFINE = re.compile(r"^\s*#\s*define\s+(LOOM_[A-Z0-9_]+)\s+([-+0-9.eE]+)\s*(//.*)?$")
 
 
 def osl_dir() -> str | None:
@@ -111,8 +111,13 @@ def code_fingerprint(path: str) -> str:
     return hashlib.sha256("".join(code.split()).encode("utf-8")).hexdigest()[:16]
 
 
-def flattened_surface_shader() -> str:
+def flattened_shader(name: str = SURFACE_SHADER) -> str:
+    """The include-flattened text of the shipped shader ``name`` (loom_cloth_*.osl)."""
     d = osl_dir()
-    if d is None or not os.path.isfile(os.path.join(d, SURFACE_SHADER)):
-        raise FileNotFoundError(f"{SURFACE_SHADER} is not shipped with this add-on")
-    return flatten(os.path.join(d, SURFACE_SHADER))
+    if d is None or not os.path.isfile(os.path.join(d, name)):
+        raise FileNotFoundError(f"{name} is not shipped with this add-on")
+    return flatten(os.path.join(d, name))
+
+
+def flattened_surface_shader() -> str:
+    return flattened_shader(SURFACE_SHADER)

@@ -387,6 +387,19 @@ std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, v
   return RaywavePoint(d, p, wo, e).eval(wi);
 }
 
+std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, vec3 wi, vec3 wo,
+                                          Evaluator e) {
+  const Image& ref = a.map("ply_frame");
+  double acc[3] = {0, 0, 0};
+  for (int iy = 0; iy < ref.height; ++iy)
+    for (int ix = 0; ix < ref.width; ++ix) {
+      const std::array<float, 3> f = raywave_eval(d, texel_surface(a, ix, iy), wi, wo, e);
+      for (int c = 0; c < 3; ++c) acc[c] += f[size_t(c)];
+    }
+  const double n = double(ref.width) * ref.height;
+  return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
+}
+
 MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels, int views,
                                    int sphere_n) {
   return mapping_error_loop(a, texels, views, sphere_n, [&d](const SurfacePoint& p, vec3 v) {

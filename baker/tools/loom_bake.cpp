@@ -655,13 +655,11 @@ int main(int argc, char** argv) {
       if (atlas.manifest.value("tier", "") == "raywave") {
         // The ray-wave BSDF (baker/include/loom/raywave_bsdf.h): f_cos is Cycles' eval (f times
         // the cosine), the quantity the ply scattering density gives directly.
-        if (average) {
-          std::cerr << "error: --average: not yet for ray-wave atlases; give --uv\n";
-          return 2;
-        }
         const loom::RaywaveData rd = loom::load_raywave(atlas);
-        const std::array<float, 3> fc = loom::raywave_eval(
-            rd, loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi, vo, e);
+        const std::array<float, 3> fc =
+            average ? loom::raywave_eval_average(atlas, rd, vi, vo, e)
+                    : loom::raywave_eval(
+                          rd, loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi, vo, e);
         const float c = std::max(std::fabs(vi.z), 1e-6f);
         std::cout << json{{"f", {fc[0] / c, fc[1] / c, fc[2] / c}},
                           {"f_cos", fc},

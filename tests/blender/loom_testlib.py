@@ -165,6 +165,13 @@ class Image:
         vals = self.px[c::4]
         return math.fsum(vals) / len(vals)
 
+    def channel_stderr(self, c: int) -> float:
+        """Standard error of channel_mean (pixels taken as independent samples)."""
+        vals = self.px[c::4]
+        n = len(vals)
+        m = math.fsum(vals) / n
+        return math.sqrt(math.fsum((v - m) ** 2 for v in vals) / max(n - 1, 1) / n)
+
     def rgb_mean(self) -> float:
         return sum(self.channel_mean(c) for c in range(3)) / 3.0
 

@@ -233,8 +233,8 @@ def main():
     mat.loom.quality = "draft"
     loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
 
-    # 5c. A ray-wave atlas (baker-side tables only) is refused with the reason, before any
-    #     material is created or changed.
+    # 5c. A ray-wave atlas without render tables (here: a surface manifest relabelled) is
+    #     refused with the reason, before any material is created or changed.
     import tempfile
 
     fake = tempfile.mkdtemp(prefix="loom-raywave-")
@@ -247,27 +247,29 @@ def main():
     try:
         loom.api.assign(plane, fake, mode="nodes", scale=1.0)
     except loom.api.LoomError as exc:
-        assert "cannot shade the raywave tier" in str(exc), str(exc)
+        assert "not a ray-wave atlas with render tables" in str(exc), str(exc)
     else:
-        raise AssertionError("a ray-wave atlas was assigned")
+        raise AssertionError("a ray-wave atlas without render tables was assigned")
     after = (mat.name, len(bpy.data.materials), [s.material for s in plane.material_slots])
     assert before == after, (before, after)
-    print("loom-test: a ray-wave atlas is refused with its reason; nothing changed")
-    # The operator refuses a ray-wave preset (a sample fabric) before baking anything.
+    print("loom-test: a ray-wave atlas without render tables is refused; nothing changed")
+    # 5d. Bake & Assign of a sample fabric (a ray-wave preset) builds the ray-wave node group.
     mat.loom.preset = "orange_polyester_satin"
-    cached = sorted(os.listdir(cache))
     t0 = time.monotonic()
     with bpy.context.temp_override(object=plane, material=mat):
-        try:  # an operator's ERROR report raises in background mode
-            res = bpy.ops.loom.bake_assign()
-        except RuntimeError as exc:
-            assert "cannot shade the raywave tier" in str(exc), str(exc)
-            res = {"CANCELLED"}
-    assert res == {"CANCELLED"}, res
-    assert sorted(os.listdir(cache)) == cached, "a bake ran for a tier that cannot be shaded"
-    assert (mat.name, len(bpy.data.materials)) == before[:2]
+        res = bpy.ops.loom.bake_assign()
+    assert res == {"FINISHED"}, res
+    assert mat.loom.mode_used == "NODES", mat.loom.mode_used
+    groups = [n.node_tree for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
+    assert len(groups) == 1 and groups[0].get("loom_tier") == "raywave", groups
+    lobes = [n for n in groups[0].nodes if n.bl_idname == "ShaderNodeGroup"]
+    with open(os.path.join(mat.loom.atlas_dir, "manifest.json"), encoding="utf-8") as f:
+        rw = json.load(f)["raywave"]["yarns"]["warp"]
+    assert len(lobes) == rw["high"]["lobes"] + rw["refl"]["lobes"], len(lobes)
+    print(f"loom-test: a ray-wave preset bakes and assigns: {len(lobes)} lobes, "
+          f"{len(groups[0].nodes)} nodes ({time.monotonic() - t0:.1f} s)")
     mat.loom.preset = "plain"
-    print(f"loom-test: a ray-wave preset is refused before baking ({time.monotonic() - t0:.2f} s)")
+    loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
 
     # 6. The API in every mode; without OSL nothing may leave a Script node behind.
     for mode in ("auto", "osl", "nodes"):

@@ -57,6 +57,8 @@ def extra_args(p):
     p.add_argument("--samples", type=int, default=64)
     p.add_argument("--res", type=int, default=64)
     p.add_argument("--tolerance", type=float, default=0.03)
+    p.add_argument("--max-samples", type=int, default=1024,
+                   help="re-render a pair that misses the tolerance with up to this many samples")
     p.add_argument("--interpolation", default="Closest", choices=["Closest", "Linear"])
     p.add_argument("--pairs", default="", help="comma-separated pair indices (default all)")
     p.add_argument("--json", default=None, help="write the measured numbers here")
@@ -128,11 +130,25 @@ def main():
         mat = loom.api.assign(plane, atlas, mode="nodes", scale=REPEATS_PER_METER,
                               interpolation=args.interpolation)
         assert loom.api.last_assign()["mode"] == "NODES"
-        t0 = time.monotonic()
-        img = lt.render_to_exr(scene, os.path.join(args.out, f"parity_{idx}.exr"))
-        dt = time.monotonic() - t0
-        assert img.finite(), "non-finite pixels"
-        got = [img.channel_mean(c) for c in range(3)]
+        # A mean over texels read 'Closest' is spiky where narrow lobes meet few texels: when a
+        # pair misses the tolerance, it is rendered again with 4x the samples (up to
+        # --max-samples), and judged on the last render; a bias does not shrink with samples.
+        samples = args.samples
+        while True:
+            scene.cycles.samples = samples
+            t0 = time.monotonic()
+            img = lt.render_to_exr(scene, os.path.join(args.out, f"parity_{idx}.exr"))
+            dt = time.monotonic() - t0
+            assert img.finite(), "non-finite pixels"
+            got = [img.channel_mean(c) for c in range(3)]
+            rel = [abs(g - e) / max(abs(e), 1e-6) for g, e in zip(got, expect)]
+            worst = max((r for r, e in zip(rel, expect) if e > 1e-4), default=0.0)
+            if worst <= args.tolerance or samples * 4 > args.max_samples:
+                break
+            print(f"loom-parity pair {idx}: {100 * worst:.2f}% at {samples} samples (standard "
+                  f"error of the mean {100 * img.channel_stderr(1) / max(got[1], 1e-9):.2f}%): "
+                  f"rendering again with {samples * 4}", flush=True)
+            samples *= 4
 
         # Units: the same view and light on a white Lambertian swatch.
         plane.data.materials.clear()
@@ -142,24 +158,22 @@ def main():
         # One-sided Lambertian about the normal Cycles turns towards the viewer.
         ctrl_expect = SUN * cos_i / math.pi if wi[2] * wo[2] > 0 else 0.0
 
-        rel = [abs(g - e) / max(abs(e), 1e-6) for g, e in zip(got, expect)]
         mean_got, mean_exp = sum(got) / 3, sum(expect) / 3
         rel_mean = abs(mean_got - mean_exp) / max(mean_exp, 1e-6)
         row = dict(pair=idx, wi=wi, wo=wo, render=got, closures=expect,
                    model=[c * SUN * cos_i for c in f_m], rel=rel, rel_mean=rel_mean,
-                   control=ctrl_got, control_expect=ctrl_expect, seconds=dt)
+                   control=ctrl_got, control_expect=ctrl_expect, seconds=dt, samples=samples)
         rows.append(row)
         print(f"loom-parity pair {idx}: wi={tuple(round(c, 3) for c in wi)} "
               f"wo={tuple(round(c, 3) for c in wo)}  render RGB "
               f"{got[0]:.5f} {got[1]:.5f} {got[2]:.5f}  closures {expect[0]:.5f} "
               f"{expect[1]:.5f} {expect[2]:.5f}  model-mean {sum(row['model']) / 3:.5f}  "
               f"rel.err {max(rel):.4f} (mean {rel_mean:.4f})  control {ctrl_got:.5f} vs "
-              f"{ctrl_expect:.5f}  [{dt:.1f} s]", flush=True)
+              f"{ctrl_expect:.5f}  [{samples} samples, {dt:.1f} s]", flush=True)
         if ctrl_expect > 0 and abs(ctrl_got - ctrl_expect) > 0.01 * ctrl_expect:
             failures.append(f"pair {idx}: diffuse control {ctrl_got:.5f} != E cos/pi "
                             f"{ctrl_expect:.5f} (units or colour management)")
         # Every channel within the tolerance (the darkest channels included).
-        worst = max(r for r, e in zip(rel, expect) if e > 1e-4)
         if worst > args.tolerance:
             failures.append(f"pair {idx}: render {got} vs closures {expect} "
                             f"({100 * worst:.2f}% > {100 * args.tolerance:.0f}% in a channel)")
@@ -168,7 +182,9 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
-    assert len(rows) >= 5 or args.pairs, f"only {len(rows)} pairs checked"
+    compared = sum(1 for r in rows if max(r["closures"]) > 1e-4)
+    assert compared >= 5 or args.pairs, (f"only {compared} pairs bright enough to compare "
+                                         f"(closures > 1e-4)")
     assert not failures, "; ".join(failures)
 
 

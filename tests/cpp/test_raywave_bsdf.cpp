@@ -354,6 +354,27 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
   EXPECT_GT(e.views, 40);
   EXPECT_LT(e.mean_energy, 0.12);
   EXPECT_LT(e.mean_l1, 0.45);
+  // The repeat average (eval bsdf --average, what node-mode parity renders compare with) is the
+  // mean over texel centres read through sample_surface (bilinear, exact at a centre).
+  {
+    const loom::Image& ref = atlas.map("ply_frame");
+    const vec3 wi = loom::shading::normalize(vec3(0.3f, 0.1f, -0.9f)),
+               wo = loom::shading::normalize(vec3(0.1f, 0.3f, 0.95f));
+    double acc[3] = {0, 0, 0};
+    for (int iy = 0; iy < ref.height; ++iy)
+      for (int ix = 0; ix < ref.width; ++ix) {
+        const auto f = loom::raywave_eval(
+            d, loom::sample_surface(atlas, (ix + 0.5f) / ref.width, (iy + 0.5f) / ref.height),
+            wi, wo, loom::Evaluator::Closures);
+        for (int c = 0; c < 3; ++c) acc[c] += f[size_t(c)];
+      }
+    const auto avg = loom::raywave_eval_average(atlas, d, wi, wo, loom::Evaluator::Closures);
+    for (int c = 0; c < 3; ++c) {
+      const double want = acc[c] / (double(ref.width) * ref.height);
+      EXPECT_GT(want, 0.0);
+      EXPECT_NEAR(avg[size_t(c)], want, 1e-4 * want + 1e-9) << c;
+    }
+  }
   // Finite, non-negative values for directions at the extremes, both sides of the cloth.
   const loom::SurfacePoint p = loom::sample_surface(atlas, 0.3f, 0.6f);
   const float nan = std::numeric_limits<float>::quiet_NaN();

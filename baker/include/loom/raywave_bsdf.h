@@ -95,6 +95,12 @@ class RaywavePoint {
 std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, shading::vec3 wi,
                                   shading::vec3 wo, Evaluator e);
 
+/// raywave_eval averaged over the texels of one weave repeat (each texel's surface maps read as
+/// they are, as an Image Texture node with 'Closest' interpolation does): what a render of many
+/// repeats shows per unit irradiance (the node-mode parity test compares with it).
+std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, shading::vec3 wi,
+                                          shading::vec3 wo, Evaluator e);
+
 /// The closure-mapping error of mapping_error() (evaluator.h) for a ray-wave atlas: relative L1
 /// over the sphere of light directions of the eval quantity, green channel.
 MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels = 64,

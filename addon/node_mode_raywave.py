@@ -1,0 +1,679 @@
+"""Node mode for the ray-wave tier: ``osl/loom_cloth_raywave.osl`` as a node group of Cycles'
+built-in nodes.
+
+The same transcription rules as the surface tier (``node_mode.py``, whose docstring explains the
+atlas images, the tangent frame and the closure weights in Color inputs): the functions below
+transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by line through
+``nodes_expr``; each names the header function it mirrors. What is particular to this tier:
+
+* Lobe tables (ply_high_*, ply_refl_*), their tints (ply_tint_*), the double-layer factors
+  (layer_factors_*) and the microfacet albedo LUT are Image Textures with EXTEND; the node images
+  and the factors are read 'Linear' (a bilinear look-up between node texels *is* Eq. S.7), the
+  tints 'Closest' at their texel centres. Image coordinates are the headers' (s from the left,
+  tv from the bottom), which is how Blender maps an image's vector input.
+* Warp and weft: OSL picks the yarn's files with an ``if``; nodes cannot choose an image, so each
+  yarn's texels are read and the values are selected (yarn_info.r > 1.5: weft). Yarns that share
+  their tables (manifest ``same_as``) share the look-ups.
+* Closures: each lobe has a Glossy BSDF (Beckmann, anisotropic) and a Refraction BSDF (Beckmann),
+  and a Translucent BSDF, whose Color is the lobe's weight times 1 for the kind
+  raywave_lobe_closure picked and 0 for the others (Cycles allocates no closure of zero weight);
+  the diffuse forward part (Eq. S.22) is one more Translucent BSDF (why not one for all:
+  build_lobe_group).
+  - Glossy BSDF (Beckmann) has no alpha inputs: Cycles (kernel/svm/closure.h, 4.2 to 5.x) sets
+    alpha = saturate(Roughness)^2, and for 0 < Anisotropy <= 0.99 alpha_x = alpha (1 - Anisotropy)
+    along Tangent, alpha_y = alpha / (1 - Anisotropy). So alpha_x = a_x <= alpha_y = a_y needs
+    Roughness = (a_x a_y)^(1/4), Anisotropy = 1 - sqrt(a_x / a_y) (a >= LOOM_RAYWAVE_MIN_ALPHA
+    keeps Anisotropy <= 0.969, inside Cycles' clamp; an isotropic lobe gives 0, which Cycles
+    treats as isotropic, the same closure).
+  - Refraction BSDF (Beckmann): alpha = Roughness^2, and the SVM node inverts its IOR on back
+    faces where OSL's microfacet() does not; the OSL shader passes LOOM_RAYWAVE_ETA on both faces,
+    so node mode passes 1 / LOOM_RAYWAVE_ETA on back faces.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import bpy
+
+from . import node_mode
+from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, exp, fabs,
+                         floor, length, max_, min_, normalize, select, sin, sqrt, vec)
+
+GROUP_PREFIX = "Loom Ray-wave"
+SHADER = "loom_cloth_raywave.osl"
+MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
+
+REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
+                      "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
+                      "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_CLOSED_FORM_MU",
+                      "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_MU_MAX", "LOOM_HORIZON_DIRS",
+                      "LOOM_HORIZON_SOFTNESS")
+
+# What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
+# checks both).
+TRANSCRIBED_FROM = {
+    "include/loom/raywave_lobes.h": "ac930a5ea0a923df",
+    "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
+    "include/loom/asg.h": "67ed9b70ace0eaa7",
+    "loom_cloth_raywave.osl": "91ba99ef3483aa07",
+}
+
+
+def constants() -> dict[str, float]:
+    return node_mode.constants(REQUIRED_CONSTANTS)
+
+
+# ======================================================================= asg.h
+
+
+def asg_frame(theta_z, phi_z, phi_xy):
+    """asg.h: asg_frame(theta_z, phi_z, phi_xy, x, y, z) (Eq. S.2).
+
+        z = (ct cp, ct sp, st); x0 = (-sp, cp, 0); y0 = (-st cp, -st sp, ct)
+        x = ca x0 - sa y0;  y = sa x0 + ca y0
+    """
+    st, ct, sp, cp = sin(theta_z), cos(theta_z), sin(phi_z), cos(phi_z)
+    z = vec(ct * cp, ct * sp, st)
+    x0 = vec(-sp, cp, 0.0)
+    y0 = vec(-st * cp, -st * sp, ct)
+    sa, ca = sin(phi_xy), cos(phi_xy)
+    return x0 * ca - y0 * sa, x0 * sa + y0 * ca, z
+
+
+def asg_disk_radial(k):
+    """asg.h: asg_disk_radial(k) = k < 1e-4 ? 0.5 - 0.25 k : (1 - exp(-k)) / (2 k)."""
+    return select(k < 1e-4, 0.5 - 0.25 * k, (1.0 - exp(-k)) / (2.0 * k))
+
+
+def asg_integral(mu1_in, mu2_in, c, K):
+    """asg.h: asg_integral(mu1, mu2, c).
+
+        c > 0 or 0;  mu = clamp(mu_in, 0, MU_MAX)
+        min(mu1, mu2) >= CLOSED_FORM_MU: c pi / sqrt(mu1 mu2)
+        else 4 c dphi sum_{i < STEPS/4} asg_disk_radial(mu1 cos^2 ph_i + mu2 sin^2 ph_i),
+             ph_i = (i + 0.5) dphi, dphi = 2 pi / STEPS
+    (the cosines of the fixed angles are Python constants)."""
+    mu_max = K["LOOM_ASG_MU_MAX"]
+    mu1 = clamp(mu1_in, 0.0, mu_max)
+    mu2 = clamp(mu2_in, 0.0, mu_max)
+    closed = c * math.pi / sqrt(mu1 * mu2)
+    steps = int(K["LOOM_ASG_INTEGRAL_STEPS"])
+    dphi = 2.0 * math.pi / steps
+    terms = []
+    for i in range(steps // 4):
+        ph = (i + 0.5) * dphi
+        terms.append(asg_disk_radial(mu1 * (math.cos(ph) ** 2) + mu2 * (math.sin(ph) ** 2)))
+    numeric = 4.0 * c * node_mode._balanced_sum(terms) * dphi
+    value = select(min_(mu1, mu2) < K["LOOM_ASG_CLOSED_FORM_MU"], numeric, closed)
+    return select(c > 0.0, value, 0.0)
+
+
+# ======================================================================= raywave_lobes.h
+
+
+def raywave_any_normal(n):
+    """raywave_lobes.h: raywave_any_normal(n).
+
+        a = |n.z| > 0.9 ? (1,0,0) : (0,0,1);  return normalize(a - n (a.n))
+    """
+    a = select(fabs(n.z) > 0.9, (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    return normalize(a - n * dot(a, n))
+
+
+def raywave_ply_space(V_, t, np_):
+    """raywave_lobes.h: raywave_ply_space(V, t, np, xp, yp, theta_i, h) -> (xp, yp, theta_i, h).
+
+        n_perp = normalize(np - t (np.t)); if (|n_perp| < 0.5) n_perp = raywave_any_normal(t)
+        v_perp = V - t (V.t); lv = |v_perp|; yp = lv > 1e-6 ? v_perp / lv : n_perp
+        xp = yp x t; theta_i = asin(clamp(V.t, -1, 1)); h = clamp(n_perp.xp, -1, 1)
+    """
+    n_perp = normalize(np_ - t * dot(np_, t))
+    n_perp = select(length(n_perp) < 0.5, raywave_any_normal(t), n_perp)
+    v_perp = V_ - t * dot(V_, t)
+    lv = length(v_perp)
+    yp = select(lv > 1e-6, v_perp / lv, n_perp)
+    xp = cross(yp, t)
+    theta_i = asin(clamp(dot(V_, t), -1.0, 1.0))
+    h = clamp(dot(n_perp, xp), -1.0, 1.0)
+    return xp, yp, theta_i, h
+
+
+def raywave_from_ply(a, xp, yp, t):
+    """raywave_lobes.h: raywave_from_ply(a, xp, yp, t) = a.x xp + a.y yp + a.z t."""
+    return xp * a.x + yp * a.y + t * a.z
+
+
+def asg_node_coord(x, lo, hi, n):
+    """raywave_lobes.h: asg_node_coord(x, lo, hi, n) = 0.5 (clamp(x, lo, hi) - lo) / (hi - lo)
+    (n - 1) (the header's NaN guard is max(u, 0) for finite inputs)."""
+    u = (clamp(x, lo, hi) - lo) / (hi - lo) * (n - 1)
+    return 0.5 * max_(u, 0.0)
+
+
+def asg_block_index(c, n):
+    """raywave_lobes.h: asg_block_index(c, n) = max(0, min(floor(c), (n - 1) / 2 - 1))."""
+    return max_(0.0, min_(floor(c), float((n - 1) // 2 - 1)))
+
+
+def asg_node_uv(fi, fj, part, lobe, lobes, rows, cols, K):
+    """raywave_lobes.h: asg_node_uv -> (s, tv).
+
+        i = clamp(fi, 0, rows - 1); j = clamp(fj, 0, cols - 1)
+        s = (asg_node_column(part, lobe, 0) + j + 0.5) / (PARTS lobes cols); tv = (i + 0.5) / rows
+    asg_node_column(part, lobe, j) = (part lobes + lobe) cols + j.
+    """
+    i = clamp(fi, 0.0, rows - 1.0)
+    j = clamp(fj, 0.0, cols - 1.0)
+    col0 = (part * lobes + lobe) * cols
+    s = (j + (col0 + 0.5)) / (K["LOOM_RAYWAVE_PARTS"] * lobes * cols)
+    return s, (i + 0.5) / rows
+
+
+def asg_tint_uv(bm, bn, lobe, lobes, mb, nb):
+    """raywave_lobes.h: asg_tint_uv -> (s, tv) = ((lobe nb + bn + 0.5) / (lobes nb),
+    (bm + 0.5) / mb)."""
+    return (bn + (lobe * nb + 0.5)) / (lobes * nb), (bm + 0.5) / mb
+
+
+def asg_lobe_reflection(V_, z, x, y, mu1, mu2, K):
+    """raywave_lobes.h: asg_lobe_reflection(V, z, x, y, mu1, mu2) -> (N, T, ax, ay).
+
+        N = normalize(V + z) (or (0,0,1) if |N| < 0.5); vn = V.N
+        g_a = P_N(2 vn a + 2 (N.a) V); e1 = normalize(P_N x) (or raywave_any_normal(N)); e2 = N x e1
+        m = clamp(mu, 0, 1e6) (the header's NaN guard, for finite inputs)
+        M = [[a11, a12], [a12, a22]] in (e1, e2); psi = atan2(2 a12, a11 - a22) / 2
+        T = cos psi e1 + sin psi e2;  a = clamp(1 / sqrt(max(mean +- dev, 1e-12)), MIN_ALPHA, 1)
+    """
+    N = normalize(V_ + z)
+    N = select(length(N) < 0.5, (0.0, 0.0, 1.0), N)
+    vn = dot(V_, N)
+    gx = x * (2.0 * vn) + V_ * (2.0 * dot(N, x))
+    gy = y * (2.0 * vn) + V_ * (2.0 * dot(N, y))
+    gx = gx - N * dot(gx, N)
+    gy = gy - N * dot(gy, N)
+    e1 = normalize(x - N * dot(x, N))
+    e1 = select(length(e1) < 0.5, raywave_any_normal(N), e1)
+    e2 = cross(N, e1)
+    m1 = clamp(mu1, 0.0, 1e6)
+    m2 = clamp(mu2, 0.0, 1e6)
+    x1, x2, y1, y2 = dot(gx, e1), dot(gx, e2), dot(gy, e1), dot(gy, e2)
+    a11 = m1 * x1 * x1 + m2 * y1 * y1
+    a12 = m1 * x1 * x2 + m2 * y1 * y2
+    a22 = m1 * x2 * x2 + m2 * y2 * y2
+    mean = 0.5 * (a11 + a22)
+    d = a11 - a22
+    dev = sqrt(0.25 * d * d + a12 * a12)
+    psi = 0.5 * atan2(2.0 * a12, d)
+    T = e1 * cos(psi) + e2 * sin(psi)
+    lo = K["LOOM_RAYWAVE_MIN_ALPHA"]
+    ax = clamp(1.0 / sqrt(max_(mean + dev, 1e-12)), lo, 1.0)
+    ay = clamp(1.0 / sqrt(max_(mean - dev, 1e-12)), lo, 1.0)
+    return N, T, ax, ay
+
+
+def asg_lobe_refraction_frame(V_, z, K):
+    """raywave_lobes.h: asg_lobe_refraction_frame(V, z, N, magnification) -> (N, mag, ok).
+
+        hv = -(ETA z + V); m = |hv|; m < 1e-6: N = (0,0,1), mag = 1, 0
+        N = hv / m; mag = ETA / m
+        ok = N.V >= MIN_COS && N.z > 0 && R.z >= min(0.9 V.z, 0.01),  R = 2 (N.V) N - V
+    """
+    eta = K["LOOM_RAYWAVE_ETA"]
+    hv = -(z * eta + V_)
+    m = length(hv)
+    tiny = m < 1e-6
+    N = select(tiny, (0.0, 0.0, 1.0), hv / m)
+    mag = select(tiny, 1.0, eta / m)
+    nv = dot(N, V_)
+    R = N * (2.0 * nv) - V_
+    ok = ((1.0 - tiny) * (1.0 - (nv < K["LOOM_RAYWAVE_MIN_COS"])) * (N.z > 0.0)
+          * (1.0 - (R.z < min_(0.9 * V_.z, 0.01))))
+    return N, mag, ok
+
+
+def asg_refraction_alpha(mu1, mu2, mag, N, z, K):
+    """raywave_lobes.h: asg_refraction_alpha(mu1, mu2, mag, N, z) =
+    clamp(mag sqrt(|N.z|) / sqrt(sqrt(m1 m2)), MIN_ALPHA, 1), m = mu >= 1e-6 ? mu : 1e-6."""
+    mu = sqrt(max_(mu1, 1e-6) * max_(mu2, 1e-6))
+    return clamp(mag * sqrt(fabs(dot(N, z))) / sqrt(mu), K["LOOM_RAYWAVE_MIN_ALPHA"], 1.0)
+
+
+def microfacet_albedo_uv(cos_nv, alpha, K):
+    """raywave_lobes.h: microfacet_albedo_uv -> (s, tv) = ((0.5 + clamp(cos, 0, 1) (n - 1)) / n,
+    (0.5 + sqrt(clamp(alpha, 0, 1)) (n - 1)) / n), n = LOOM_MICROFACET_ALBEDO_SIZE."""
+    n = K["LOOM_MICROFACET_ALBEDO_SIZE"]
+    s = (0.5 + clamp(cos_nv, 0.0, 1.0) * (n - 1.0)) / n
+    tv = (0.5 + sqrt(clamp(alpha, 0.0, 1.0)) * (n - 1.0)) / n
+    return s, tv
+
+
+def asg_microfacet_weight(integral, albedo, K):
+    """raywave_lobes.h: asg_microfacet_weight = !(albedo >= 0) || !(integral > 0) ? 0 :
+    integral / max(albedo, MIN_ALBEDO)."""
+    ok = (integral > 0.0) * (1.0 - (albedo < 0.0))
+    return select(ok, integral / max_(albedo, K["LOOM_RAYWAVE_MIN_ALBEDO"]), 0.0)
+
+
+def raywave_lobe_closure(V_, xp, yp, t, p0, mu1, p1, K):
+    """raywave_lobes.h: raywave_lobe_closure(V, xp, yp, t, p0, mu1, p1, z, N, T, ax, ay) -> kind.
+
+        (x, y, z) = asg_frame(p0) in the tangent frame (raywave_from_ply)
+        z.z > 0: asg_lobe_reflection, kind 0
+        else asg_lobe_refraction_frame ok: ax = ay = asg_refraction_alpha, kind 2
+        else N = (0,0,1), T = (1,0,0), ax = ay = 1, kind 1
+    Returns (z, N, T, ax, ay, is_refl, is_refr, is_transl) with 0/1 flags for the kinds."""
+    lx, ly, lz = asg_frame(p0.x, p0.y, p0.z)
+    z = raywave_from_ply(lz, xp, yp, t)
+    x = raywave_from_ply(lx, xp, yp, t)
+    y = raywave_from_ply(ly, xp, yp, t)
+    Nr, Tr, axr, ayr = asg_lobe_reflection(V_, z, x, y, mu1, p1.x, K)
+    Nt, mag, ok = asg_lobe_refraction_frame(V_, z, K)
+    at = asg_refraction_alpha(mu1, p1.x, mag, Nt, z, K)
+    is_refl = z.z > 0.0
+    is_refr = (1.0 - is_refl) * ok
+    is_transl = (1.0 - is_refl) * (1.0 - ok)
+    N = select(is_refl, Nr, select(is_refr, Nt, (0.0, 0.0, 1.0)))
+    T = select(is_refl, Tr, (1.0, 0.0, 0.0))
+    ax = select(is_refl, axr, select(is_refr, at, 1.0))
+    ay = select(is_refl, ayr, select(is_refr, at, 1.0))
+    return z, N, T, ax, ay, is_refl, is_refr, is_transl
+
+
+def raywave_lobe_weight(is_refl, is_refr, integral, albedo, tint, open_, vis_v, vis_z, rho_b,
+                        rho_f, s, K):
+    """raywave_lobes.h: raywave_lobe_weight(kind, integral, albedo, tint, open, vis_v, vis_z,
+    rho_b, rho_f, s).
+
+        kind 0: asg_microfacet_weight(integral, albedo) open vis_v vis_z tint rho_b
+        kind 2: asg_microfacet_weight(integral, albedo) open (1 - s) tint rho_f
+        kind 1: integral open (1 - s) tint rho_f
+    Returns (the kind-0 weight, the kind-1/2 weight): each closure takes the one of its kind."""
+    mw = asg_microfacet_weight(integral, albedo, K)
+    w_refl = tint * rho_b * (mw * open_ * vis_v * vis_z)
+    w_fwd = tint * rho_f * (select(is_refr, mw, integral) * (open_ * (1.0 - s)))
+    return w_refl, w_fwd
+
+
+# ======================================================================= double_layer_factors.h
+
+
+def double_layer_uv(xi, block, theta_count, phi_count):
+    """double_layer_factors.h: double_layer_uv(xi, block, theta_count, phi_count) -> (s, tv).
+
+        theta = acos(clamp(xi.z, 0, 1)) 180 / pi;  row = clamp(theta Tc / 90 - 0.5, 0, Tc - 1)
+        phi = |xi.x| + |xi.y| > 1e-9 ? atan2(xi.y, xi.x) 180 / pi : 0;  phi < 0: phi += 360
+        col = clamp(phi Pc / 360 + 0.5, 0.5, Pc + 0.5);  w = Pc + 2
+        s = (block w + col + 0.5) / (3 w);  tv = (row + 0.5) / Tc
+    """
+    theta = acos(clamp(xi.z, 0.0, 1.0)) * (180.0 / math.pi)
+    row = clamp(theta * (theta_count / 90.0) - 0.5, 0.0, theta_count - 1.0)
+    phi = select(fabs(xi.x) + fabs(xi.y) > 1e-9, atan2(xi.y, xi.x) * (180.0 / math.pi), 0.0)
+    phi = select(phi < 0.0, phi + 360.0, phi)
+    col = clamp(phi * (phi_count / 360.0) + 0.5, 0.5, phi_count + 0.5)
+    w = phi_count + 2.0
+    return (col + (block * w + 0.5)) / (3.0 * w), (row + 0.5) / theta_count
+
+
+# ======================================================================= atlas checks
+
+
+def _grid(manifest: dict) -> dict:
+    """The lobe grids of a ray-wave atlas, which the OSL shader takes once for all tables: raise
+    ValueError naming what differs when the yarns' or the components' grids are not one."""
+    rw = manifest["raywave"]
+    grids = []
+    for y in ("warp", "weft"):
+        for part in ("high", "refl"):
+            g = rw["yarns"][y][part]
+            grids.append(((g["theta_i"]["count"], g["theta_i"]["min"], g["theta_i"]["max"]),
+                          (g["h"]["count"], g["h"]["min"], g["h"]["max"])))
+    if any(g != grids[0] for g in grids):
+        raise ValueError("the yarns' lobe tables use different (theta_i, h) grids; the ray-wave "
+                         "shaders take one grid (not yet supported: bake both yarns at one "
+                         "quality)")
+    (m, th_lo, th_hi), (n, h_lo, h_hi) = grids[0]
+    if (float(h_lo), float(h_hi)) != (-1.0, 1.0):
+        raise ValueError(f"the lobe tables' h range is [{h_lo}, {h_hi}]; the ray-wave shaders "
+                         f"take h in [-1, 1]")
+    lobes = {part: {rw["yarns"][y][part]["lobes"] for y in ("warp", "weft")}
+             for part in ("high", "refl")}
+    if any(len(v) != 1 for v in lobes.values()):
+        raise ValueError("the yarns' lobe tables have different lobe counts; the ray-wave shaders "
+                         "take one count per component")
+    dl = rw["double_layer"]
+    return {"m": int(m), "n": int(n), "theta_min": float(th_lo), "theta_max": float(th_hi),
+            "h_min": float(h_lo), "h_max": float(h_hi),
+            "high_lobes": int(next(iter(lobes["high"]))),
+            "refl_lobes": int(next(iter(lobes["refl"]))),
+            "layer_theta_count": int(dl["theta_count"]), "layer_phi_count": int(dl["phi_count"]),
+            "blend": float(dl.get("blend", 0.5))}
+
+
+def atlas_problem(manifest: dict) -> str | None:
+    """None if node mode (and the OSL shader) can read this ray-wave atlas, else why not."""
+    try:
+        rw = manifest["raywave"]
+        textures = manifest["textures"]
+        for y in ("warp", "weft"):
+            if rw["yarns"][y].get("node_layout") != "lobe-major":
+                return ("its lobe tables predate the lobe-major layout: re-bake the atlas with "
+                        "this version of loom-bake")
+        _grid(manifest)
+        needed = set(MAPS) | {rw["shading"]["microfacet_albedo"],
+                              *rw["shading"]["factors"].values()}
+        for y in ("warp", "weft"):
+            files = rw["yarns"][y]["files"]
+            needed |= {files["high"], files["refl"], files["tint"]}
+    except (KeyError, TypeError) as exc:
+        return (f"not a ray-wave atlas with render tables (manifest lacks {exc}): re-bake it "
+                f"with this version of loom-bake")
+    except ValueError as exc:
+        return str(exc)
+    missing = sorted(m for m in needed if m not in textures)
+    if missing:
+        return f"maps missing: {', '.join(missing)}"
+    K = constants()
+    n = int(K["LOOM_MICROFACET_ALBEDO_SIZE"])
+    got = list(textures[rw["shading"]["microfacet_albedo"]].get("size", []))
+    if got != [n, n]:
+        return f"microfacet albedo LUT is {got}, the shaders expect {[n, n]}"
+    return None
+
+
+def osl_parameters(manifest: dict) -> tuple[dict, dict]:
+    """(texture parameters -> atlas texture names, other parameters -> values) of
+    loom_cloth_raywave.osl for this atlas."""
+    rw = manifest["raywave"]
+    g = _grid(manifest)
+    tex = {m: m for m in MAPS}
+    for y in ("warp", "weft"):
+        files = rw["yarns"][y]["files"]
+        tex[f"high_{y}"] = files["high"]
+        tex[f"refl_{y}"] = files["refl"]
+        tex[f"tint_{y}"] = files["tint"]
+    tex["factors_front"] = rw["shading"]["factors"]["front"]
+    tex["factors_back"] = rw["shading"]["factors"]["back"]
+    tex["microfacet_albedo"] = rw["shading"]["microfacet_albedo"]
+    values = {"high_lobes": g["high_lobes"], "refl_lobes": g["refl_lobes"],
+              "theta_count": g["m"], "h_count": g["n"], "theta_min": g["theta_min"],
+              "theta_max": g["theta_max"], "layer_theta_count": g["layer_theta_count"],
+              "layer_phi_count": g["layer_phi_count"], "double_layer_blend": g["blend"]}
+    return tex, values
+
+
+def group_name(manifest: dict) -> str:
+    return f"{GROUP_PREFIX} ({manifest.get('spec', {}).get('name', 'atlas')})"
+
+
+# ======================================================================= the groups
+
+# The lobe group's inputs (name, socket type), in the order of loom_lobes' per-lobe arguments.
+LOBE_INPUTS = (
+    ("p0", "NodeSocketVector"), ("mu1", "NodeSocketFloat"), ("p1", "NodeSocketVector"),
+    ("tint", "NodeSocketColor"), ("V", "NodeSocketVector"), ("xp", "NodeSocketVector"),
+    ("yp", "NodeSocketVector"), ("t", "NodeSocketVector"), ("T", "NodeSocketVector"),
+    ("B", "NodeSocketVector"), ("N", "NodeSocketVector"), ("back", "NodeSocketFloat"),
+    *((f"hor{k}", "NodeSocketFloat") for k in range(8)), ("open", "NodeSocketFloat"),
+    ("vis_v", "NodeSocketFloat"), ("rho_b", "NodeSocketColor"), ("rho_f", "NodeSocketColor"),
+    ("s", "NodeSocketFloat"))
+
+
+def _new_group(name: str, inputs, outputs, description: str):
+    group = bpy.data.node_groups.get(name)
+    if group is None or group.bl_idname != "ShaderNodeTree":
+        group = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    group.nodes.clear()
+    group.interface.clear()
+    for n, kind in inputs:
+        group.interface.new_socket(n, in_out="INPUT", socket_type=kind)
+    for n, kind in outputs:
+        group.interface.new_socket(n, in_out="OUTPUT", socket_type=kind)
+    group.description = description
+    return group
+
+
+def build_lobe_group(name: str, albedo_image, K):
+    """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closure, the
+    microfacet albedo look-up, the light-side visibility, raywave_lobe_weight and the lobe's
+    Glossy, Refraction and Translucent BSDFs (the weight of the kinds not picked is 0). Built
+    once per atlas (it holds the atlas's albedo image) and used for every lobe: a group of a few
+    hundred nodes instead of one of thousands, which Blender builds and edits much faster.
+
+    Each lobe ends in its own closures, although the translucent ones could share one closure
+    (OSL sums them in one translucent() term): a value that several closures read stays on
+    Cycles' SVM stack (255 floats) until the last of them is compiled, so one Translucent BSDF
+    fed by every lobe kept every lobe's intermediate values alive and overflowed the stack at
+    final quality (6 lobes: "out of SVM stack space", the material renders black)."""
+    group = _new_group(name, LOBE_INPUTS, (("BSDF", "NodeSocketShader"),),
+                       "Loom ray-wave: one fitted lobe as Cycles closures (raywave_lobes.h)")
+    b = Builder(group)
+    eta = K["LOOM_RAYWAVE_ETA"]
+    with b.block("Lobe inputs (loom_lobes)"):
+        gin = b.new("NodeGroupInput")
+        i = {n: (b.vector_socket if kind != "NodeSocketFloat" else b.float_socket)(
+            gin.outputs[n]) for n, kind in LOBE_INPUTS}
+        hor = [i[f"hor{k}"] for k in range(8)]
+        V_, back = i["V"], i["back"]
+    with b.block("raywave_lobes.h: raywave_lobe_closure"):
+        z, Nl, Tl, ax, ay, is_refl, is_refr, is_transl = raywave_lobe_closure(
+            V_, i["xp"], i["yp"], i["t"], i["p0"], i["mu1"], i["p1"], K)
+    with b.block("microfacet_albedo_uv, the albedo LUT, horizon_visibility(z)"):
+        ls, lt = microfacet_albedo_uv(dot(Nl, V_), sqrt(ax * ay), K)
+        node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                     label="microfacet_albedo")
+        node.image = albedo_image
+        b.link(vec(ls, lt, 0.0), node.inputs["Vector"])
+        E = b.vector_socket(node.outputs["Color"])
+        albedo = b.label(select(is_refr, E.y, E.x), "albedo")
+        vis_z = b.label(select(back, 1.0, node_mode.horizon_visibility(z, hor, K)), "vis_z")
+    with b.block("asg.h: asg_integral"):
+        integral = b.label(asg_integral(i["mu1"], i["p1"].x, i["p1"].y, K), "integral")
+    with b.block("raywave_lobes.h: raywave_lobe_weight; closures"):
+        w_refl, w_fwd = raywave_lobe_weight(is_refl, is_refr, integral, albedo, i["tint"],
+                                            i["open"], i["vis_v"], vis_z, i["rho_b"],
+                                            i["rho_f"], i["s"], K)
+        T, B, Nw = i["T"], i["B"], i["N"]
+        nw = normalize(T * Nl.x + B * Nl.y + Nw * Nl.z)
+        tw = normalize(T * Tl.x + B * Tl.y + Nw * Tl.z)
+        gl = b.new("ShaderNodeBsdfGlossy", distribution="BECKMANN",
+                   label='microfacet("beckmann", N, T, ax, ay, 1, 0)')
+        b.link(w_refl * is_refl, gl.inputs["Color"])
+        b.link(sqrt(sqrt(ax * ay)), gl.inputs["Roughness"])
+        b.link(1.0 - sqrt(ax / ay), gl.inputs["Anisotropy"])
+        b.link(0.0, gl.inputs["Rotation"])
+        b.link(nw, gl.inputs["Normal"])
+        b.link(tw, gl.inputs["Tangent"])
+        rf = b.new("ShaderNodeBsdfRefraction", distribution="BECKMANN",
+                   label='microfacet("beckmann", N, N, a, a, eta, 1)')
+        b.link(w_fwd * is_refr, rf.inputs["Color"])
+        b.link(sqrt(ax), rf.inputs["Roughness"])
+        b.link(select(back, 1.0 / eta, eta), rf.inputs["IOR"])
+        b.link(nw, rf.inputs["Normal"])
+        tr = b.new("ShaderNodeBsdfTranslucent", label="translucent(N)")
+        b.link(w_fwd * is_transl, tr.inputs["Color"])
+        b.link(Nw, tr.inputs["Normal"])
+        add = b.new("ShaderNodeAddShader")
+        b.connect(gl.outputs["BSDF"], add.inputs[0])
+        b.connect(rf.outputs["BSDF"], add.inputs[1])
+        add2 = b.new("ShaderNodeAddShader")
+        b.connect(add.outputs["Shader"], add2.inputs[0])
+        b.connect(tr.outputs["BSDF"], add2.inputs[1])
+        gout = b.new("NodeGroupOutput")
+        b.connect(add2.outputs["Shader"], gout.inputs["BSDF"])
+    b.layout()
+    return group
+
+
+def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Linear",
+                        name: str | None = None):
+    """Build (or rebuild in place) the ray-wave node group for this atlas and return it.
+
+    Interface and ``interpolation`` (of the periodic surface maps) as
+    node_mode.build_surface_group; the tables are always read as described in the module
+    docstring. The lobes are instances of a second group, ``<name> lobe`` (build_lobe_group)."""
+    problem = atlas_problem(manifest)
+    if problem:
+        raise ValueError(f"{atlas_dir}: {problem}")
+    K = constants()
+    g = _grid(manifest)
+    rw = manifest["raywave"]
+    tex_params, _ = osl_parameters(manifest)
+    M, N_ = g["m"], g["n"]
+    rows, cols = M // 2 + 1, N_ // 2 + 1
+
+    name = name or group_name(manifest)
+    label = f"Loom {manifest.get('spec', {}).get('name', 'atlas')}"
+    images: dict[str, object] = {}
+
+    def image(tex_name):
+        if tex_name not in images:
+            images[tex_name] = node_mode.load_atlas_image(atlas_dir, manifest, tex_name, label)
+        return images[tex_name]
+
+    lobe_group = build_lobe_group(f"{name} lobe", image(rw["shading"]["microfacet_albedo"]), K)
+    lobe_group["loom_atlas"] = os.path.abspath(atlas_dir)
+    group = _new_group(name, (("Scale", "NodeSocketFloat"),), (("BSDF", "NodeSocketShader"),),
+                       f"Loom ray-wave cloth from atlas {os.path.abspath(atlas_dir)}")
+    s_in = group.interface.items_tree["Scale"]
+    s_in.default_value = 1.0
+    s_in.min_value = 0.0
+    s_in.description = "weave repeats per UV unit"
+    group["loom_atlas"] = os.path.abspath(atlas_dir)
+    group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
+    group["loom_tier"] = "raywave"
+
+    b = Builder(group)
+
+    def table(tex_name, s, tv, interp="Linear", what=""):
+        node = b.new("ShaderNodeTexImage", interpolation=interp, extension="EXTEND",
+                     label=f"{tex_name} {what}".strip())
+        node.image = image(tex_name)
+        b.link(vec(s, tv, 0.0), node.inputs["Vector"])
+        return b.vector_socket(node.outputs["Color"]), b.float_socket(node.outputs["Alpha"])
+
+    # ---------------------------------------------------------------- inputs, maps, frame
+    with b.block("Inputs: UV * Scale, view, frame (loom_cloth_raywave.osl)"):
+        gin = b.new("NodeGroupInput")
+        texco = b.new("ShaderNodeTexCoord")
+        geo = b.new("ShaderNodeNewGeometry")
+        tan = b.new("ShaderNodeTangent", direction_type="UV_MAP")
+        scale_ = b.float_socket(gin.outputs["Scale"])
+        uvraw = b.vector_socket(texco.outputs["UV"])
+        uv = b.label(vec(uvraw.x * scale_, uvraw.y * scale_ * node_mode.repeat_aspect(manifest),
+                         0.0), "uv = UV * (Scale, Scale * Aspect)")
+
+    with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
+        tex = {}
+        for m in MAPS:
+            node = b.new("ShaderNodeTexImage", interpolation=interpolation,
+                         extension="REPEAT", label=m)
+            node.image = image(m)
+            b.link(uv, node.inputs["Vector"])
+            tex[m] = (b.vector_socket(node.outputs["Color"]), b.float_socket(node.outputs["Alpha"]))
+    c_frame, _ = tex["ply_frame"]
+    c_normal, _ = tex["ply_normal"]
+    c_info, a_info = tex["yarn_info"]
+    c_h0, a_h0 = tex["horizon_0"]
+    c_h1, a_h1 = tex["horizon_1"]
+
+    with b.block("Frame: T, B from the front normal, V, ply space (loom_cloth_raywave.osl, "
+                 "raywave_ply_space)"):
+        back = b.float_socket(geo.outputs["Backfacing"])
+        Nw = b.vector_socket(geo.outputs["Normal"])
+        Nf = b.label(Nw * (1.0 - 2.0 * back), "Nf (front normal)")
+        Tg = b.vector_socket(tan.outputs["Tangent"])
+        T = b.label(normalize(Tg - Nf * dot(Nf, Tg)), "T")
+        B = b.label(cross(Nf, T), "B")
+        Vw = b.vector_socket(geo.outputs["Incoming"])
+        V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, Nw)), "V (tangent frame)")
+        t = b.label(normalize(vec(c_frame.x, c_frame.y, c_frame.z)), "t")
+        np_ = b.label(normalize(vec(c_normal.x, c_normal.y, c_normal.z)), "n_p")
+        hor = [c_h0.x, c_h0.y, c_h0.z, a_h0, c_h1.x, c_h1.y, c_h1.z, a_h1]
+        xp, yp, theta_i, h = raywave_ply_space(V_, t, np_)
+        b.label(theta_i, "theta_i")
+        b.label(h, "h")
+        open_ = b.label(1.0 - clamp(a_info, 0.0, 1.0), "open")
+        vis_v = b.label(select(back, 1.0, node_mode.horizon_visibility(V_, hor, K)), "vis_v")
+        weft = b.label(c_info.x > 1.5, "weft (yarn_info.r > 1.5)")
+
+    # ---------------------------------------------------------------- double layer
+    with b.block("double_layer_factors.h: rho_b, rho_f, F_total at xi = V"):
+        files = rw["shading"]["factors"]
+        fac = []
+        for block in range(3):
+            ds, dt = double_layer_uv(V_, block, g["layer_theta_count"], g["layer_phi_count"])
+            cf, _ = table(files["front"], ds, dt, what=f"block {block}")
+            cb, _ = table(files["back"], ds, dt, what=f"block {block}")
+            fac.append(select(back, cb, cf))
+        rho_b, rho_f, f_total = (b.label(f, n) for f, n in zip(fac, ("rho_b", "rho_f",
+                                                                     "F_total")))
+
+    with b.block("raywave_lobes.h: asg_node_coord, asg_block_index"):
+        fi = b.label(asg_node_coord(theta_i, g["theta_min"], g["theta_max"], M), "fi")
+        fj = b.label(asg_node_coord(h, g["h_min"], g["h_max"], N_), "fj")
+        bm = asg_block_index(fi, M)
+        bn = asg_block_index(fj, N_)
+
+    # ---------------------------------------------------------------- lobes
+    lobe_outputs = []
+
+    def lobe_texels(part_name, l, lobes):
+        """p0, mu1, p1, tint of lobe l for the yarn at this point: each yarn's texels, selected
+        by `weft`; a table or tint that both yarns share is read once."""
+        nodes_of, tint_of, per_yarn = {}, {"": (1.0, 1.0, 1.0)}, {}  # f_refl has no tint
+        for y in ("warp", "weft"):
+            f = tex_params[f"{part_name}_{y}"]
+            tf = tex_params[f"tint_{y}"] if part_name == "high" else ""
+            if f not in nodes_of:
+                s0, t0 = asg_node_uv(fi, fj, 0, l, lobes, rows, cols, K)
+                s1, t1 = asg_node_uv(fi, fj, 1, l, lobes, rows, cols, K)
+                p0, mu1 = table(f, s0, t0, what=f"lobe {l} part 0")
+                p1, _ = table(f, s1, t1, what=f"lobe {l} part 1")
+                nodes_of[f] = (p0, mu1, p1)
+            if tf not in tint_of:
+                ts, tt = asg_tint_uv(bm, bn, l, lobes, rows - 1, cols - 1)
+                tint_of[tf], _ = table(tf, ts, tt, interp="Closest", what=f"lobe {l}")
+            per_yarn[y] = (*nodes_of[f], tint_of[tf])
+        return tuple(a if a is e else select(weft, e, a)
+                     for a, e in zip(per_yarn["warp"], per_yarn["weft"]))
+
+    for part_name, lobes in (("refl", g["refl_lobes"]), ("high", g["high_lobes"])):
+        for l in range(lobes):
+            with b.block(f"loom_lobes: {part_name} lobe {l} (asg_node_uv, asg_tint_uv)"):
+                p0, mu1, p1, tintc = lobe_texels(part_name, l, lobes)
+                node = b.new("ShaderNodeGroup", label=f"{part_name} lobe {l}")
+                node.node_tree = lobe_group
+                node.hide = False
+                args = {"p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "V": V_, "xp": xp,
+                        "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
+                        **{f"hor{k}": hor[k] for k in range(8)}, "open": open_,
+                        "vis_v": vis_v, "rho_b": rho_b, "rho_f": rho_f, "s": g["blend"]}
+                for n, _kind in LOBE_INPUTS:
+                    b.link(args[n], node.inputs[n])
+                lobe_outputs.append(node)
+
+    # ---------------------------------------------------------------- closures
+    with b.block("Closures (loom_cloth_raywave.osl)"):
+        tr = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * open s F_total")
+        b.link(f_total * (open_ * g["blend"]), tr.inputs["Color"])
+        b.link(Nw, tr.inputs["Normal"])
+        gap = 1.0 - open_
+        transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * (1 - open)")
+        b.link(vec(gap, gap, gap), transp.inputs["Color"])
+        total = None
+        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"],
+                    *(n.outputs["BSDF"] for n in lobe_outputs)):
+            if total is None:
+                total = out
+                continue
+            add = b.new("ShaderNodeAddShader")
+            b.connect(total, add.inputs[0])
+            b.connect(out, add.inputs[1])
+            total = add.outputs["Shader"]
+        gout = b.new("NodeGroupOutput")
+        b.connect(total, gout.inputs["BSDF"])
+
+    b.layout()
+    return group

@@ -1,0 +1,97 @@
+"""Render time of Loom materials as a ratio to a Principled BSDF with sheen, same scene, samples
+and resolution, measured in one run (absolute seconds are noise on a shared machine).
+
+A swatch seen by an orthographic camera, one sun, black world. Each material is rendered
+--repeats times, alternating, and the median time is reported with its ratio to the Principled
+median. Node mode (the Blender here has no OSL).
+
+    blender -b --factory-startup --python-exit-code 1 --python bench/blender_render_ratio.py -- \
+        --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] [--repeats 3] \
+        [--json OUT]
+"""
+
+import json
+import os
+import statistics
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests",
+                                "blender"))
+import loom_testlib as lt  # noqa: E402
+
+import bpy  # noqa: E402
+
+
+def extra_args(p):
+    p.add_argument("--material", action="append", default=[], dest="atlases",
+                   help="NAME=DIR, repeatable")
+    p.add_argument("--samples", type=int, default=16)
+    p.add_argument("--res", type=int, default=128)
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--json", default=None)
+
+
+def principled_sheen():
+    mat = bpy.data.materials.new("Principled sheen")
+    mat.use_nodes = True
+    p = mat.node_tree.nodes["Principled BSDF"]
+    p.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    p.inputs["Roughness"].default_value = 0.8
+    p.inputs["Sheen Weight"].default_value = 1.0
+    p.inputs["Sheen Roughness"].default_value = 0.5
+    return mat
+
+
+def main():
+    args = lt.parse_args(extra_args)
+    lt.enable_addon()
+    import loom.api
+
+    scene = lt.empty_scene()
+    scene.cycles.samples = args.samples
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x = scene.render.resolution_y = args.res
+    scene.render.resolution_percentage = 100
+    plane = lt.add_plane("Swatch", half=2.0, uv_per_meter=1.0)
+    cam_data = bpy.data.cameras.new("Ortho")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 0.05
+    cam = bpy.data.objects.new("Camera", cam_data)
+    cam.location = (0.0, -0.3, 0.95)
+    lt.look_along(cam, (0.0, 0.3, -0.95))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
+    sun.data.energy = 3.0
+    lt.look_along(sun, (-0.3, 0.2, -0.93))
+    scene.collection.objects.link(sun)
+
+    materials = {"principled_sheen": principled_sheen()}
+    for item in args.atlases:
+        name, atlas = item.split("=", 1)
+        t0 = time.monotonic()
+        materials[name] = loom.api.assign(plane, atlas, mode="nodes", scale=None,
+                                          material=bpy.data.materials.new(name))
+        print(f"loom-bench: {name}: material built in {time.monotonic() - t0:.2f} s", flush=True)
+    times = {n: [] for n in materials}
+    out = os.path.join(bpy.app.tempdir or "/tmp", "loom_render_ratio.exr")
+    for _ in range(args.repeats):
+        for name, mat in materials.items():
+            plane.data.materials.clear()
+            plane.data.materials.append(mat)
+            t0 = time.monotonic()
+            lt.render_to_exr(scene, out)
+            times[name].append(time.monotonic() - t0)
+    base = statistics.median(times["principled_sheen"])
+    rows = []
+    for name, ts in times.items():
+        med = statistics.median(ts)
+        rows.append({"material": name, "median_s": med, "ratio": med / base, "times": ts})
+        print(f"loom-bench: {name:28s} median {med:7.2f} s  ratio {med / base:6.2f}", flush=True)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"samples": args.samples, "res": args.res, "rows": rows}, f, indent=1)
+
+
+lt.run(main)
