@@ -130,12 +130,32 @@ class SliceCost final : public ceres::CostFunction {
 /// (phi_z within pi, phi_xy within pi/2, its period): unbounded, an optimiser may move a corner's
 /// angle by whole turns, which leaves the fitted slices unchanged but makes S.7's bilinear
 /// interpolation sweep the lobe round the ply between them.
-void set_bounds(ceres::Problem& pb, double* q, int L, double mu_max, double c_max) {
+/// The side of the ply a lobe must stay on (asg_fit.h, AsgFitSettings::split_sides): the first
+/// Lb lobes backward (centre towards the beam's source in the ply's cross-section, sin phi_z > 0,
+/// as omega_i = (0, cos theta_i, sin theta_i)), the others forward (sin phi_z < 0); Lb = 0: free.
+/// Returns the interval of phi_z (unwrapped next to `phi`) for lobe l.
+void side_interval(int l, int Lb, double phi, double& lo, double& hi) {
+  if (Lb == 0) {
+    lo = phi - M_PI, hi = phi + M_PI;
+    return;
+  }
+  constexpr double eps = 1e-3;
+  const double base = l < Lb ? 0.0 : -M_PI;  // back (0, pi), forward (-pi, 0), mod 2 pi
+  const double k = std::floor((phi - base) / (2 * M_PI));
+  lo = base + 2 * M_PI * k + eps, hi = base + 2 * M_PI * k + M_PI - eps;
+}
+
+/// Backward lobes of L when the sides are split (side_interval).
+int back_lobes(int L, bool split) { return split && L >= 2 ? L / 2 : 0; }
+
+void set_bounds(ceres::Problem& pb, double* q, int L, int Lb, double mu_max, double c_max) {
   for (int l = 0; l < L; ++l) {
     pb.SetParameterLowerBound(q, kQ * l + 0, -M_PI / 2);
     pb.SetParameterUpperBound(q, kQ * l + 0, M_PI / 2);
-    pb.SetParameterLowerBound(q, kQ * l + 1, q[kQ * l + 1] - M_PI);
-    pb.SetParameterUpperBound(q, kQ * l + 1, q[kQ * l + 1] + M_PI);
+    double lo, hi;
+    side_interval(l, Lb, q[kQ * l + 1], lo, hi);
+    pb.SetParameterLowerBound(q, kQ * l + 1, lo);
+    pb.SetParameterUpperBound(q, kQ * l + 1, hi);
     pb.SetParameterLowerBound(q, kQ * l + 2, q[kQ * l + 2] - M_PI / 2);
     pb.SetParameterUpperBound(q, kQ * l + 2, q[kQ * l + 2] + M_PI / 2);
     for (int i : {3, 4}) {
@@ -147,10 +167,22 @@ void set_bounds(ceres::Problem& pb, double* q, int L, double mu_max, double c_ma
   }
 }
 
-void clamp_to_bounds(double* q, int L, double mu_max, double c_max) {
+void clamp_to_bounds(double* q, int L, int Lb, double mu_max, double c_max) {
   for (int l = 0; l < L; ++l) {
     double* ql = q + kQ * l;
     ql[0] = std::clamp(ql[0], -M_PI / 2 + 1e-9, M_PI / 2 - 1e-9);
+    if (Lb > 0) {  // onto the lobe's side: the nearer end of its interval
+      double lo, hi;
+      side_interval(l, Lb, ql[1], lo, hi);
+      if (ql[1] < lo || ql[1] > hi) {
+        const double a = ql[1] < lo ? lo : hi;  // same turn; also try the other turns' ends
+        double best = a;
+        for (double cand : {lo, hi, lo + 2 * M_PI, hi - 2 * M_PI})
+          if (std::fabs(cand - ql[1]) < std::fabs(best - ql[1])) best = cand;
+        side_interval(l, Lb, best, lo, hi);
+        ql[1] = std::clamp(best, lo, hi);
+      }
+    }
     ql[3] = std::clamp(ql[3], 0.0, mu_max);
     ql[4] = std::clamp(ql[4], 0.0, mu_max);
     ql[5] = std::clamp(ql[5], 0.0, c_max);
@@ -170,18 +202,23 @@ ceres::Solver::Options solver_options(const AsgFitSettings& s) {
 
 /// Greedy start for L lobes on one slice: the peak of what remains, half-maximum widths along
 /// the azimuth (x0 of S.2) and the elevation (y0), subtract, repeat.
-void greedy_init(const FitGrid& g, const double* f, int L, double mu_max, double* q) {
+void greedy_init(const FitGrid& g, const double* f, int L, int Lb, double mu_max, double* q) {
   std::vector<double> r(f, f + g.bins());
   const double dth = M_PI / g.rows, dph = 2 * M_PI / g.cols;
   for (int l = 0; l < L; ++l) {
     double* ql = q + kQ * l;
-    size_t best = size_t(std::max_element(r.begin(), r.end()) - r.begin());
-    double peak = r[best];
+    // With split sides, the peak of what remains on the lobe's own side.
+    const int half = Lb == 0 ? 0 : (l < Lb ? 1 : -1);
+    size_t best = 0;
+    double peak = -1;
+    for (size_t b = 0; b < g.bins(); ++b)
+      if ((half == 0 || (half > 0) == (g.dir[b].y > 0)) && r[b] > peak) peak = r[b], best = b;
     const sh::vec3 d = g.dir[best];
     ql[0] = std::asin(std::clamp(double(d.z), -1.0, 1.0));
     ql[1] = std::atan2(double(d.y), double(d.x));
     ql[2] = 0;
     if (!(peak > 0)) {
+      if (half != 0) ql[0] = 0, ql[1] = half * M_PI / 2;
       ql[3] = ql[4] = 1, ql[5] = 0;
       continue;
     }
@@ -202,12 +239,12 @@ void greedy_init(const FitGrid& g, const double* f, int L, double mu_max, double
 }
 
 /// Fit the lobes q of one slice alone (a start for the block fit); returns the final cost.
-double single_slice_fit(const FitGrid& g, const double* f, int L, const AsgFitSettings& s,
-                        double c_max, double* q) {
-  clamp_to_bounds(q, L, s.mu_max, c_max);
+double single_slice_fit(const FitGrid& g, const double* f, int L, int Lb,
+                        const AsgFitSettings& s, double c_max, double* q) {
+  clamp_to_bounds(q, L, Lb, s.mu_max, c_max);
   ceres::Problem pb;
   pb.AddResidualBlock(new SliceCost(g, f, {1.0}, L), nullptr, q);
-  set_bounds(pb, q, L, s.mu_max, c_max);
+  set_bounds(pb, q, L, Lb, s.mu_max, c_max);
   ceres::Solver::Summary sum;
   ceres::Solve(solver_options(s), &pb, &sum);
   return sum.final_cost;
@@ -215,7 +252,7 @@ double single_slice_fit(const FitGrid& g, const double* f, int L, const AsgFitSe
 
 /// Reorder lobes b to follow lobes a (greedy nearest centres) and unwrap b's phi_z (period 2 pi)
 /// and phi_xy (period pi: the ASG is unchanged by x, y -> -x, -y) to lie nearest a's.
-void match_lobes(const double* a, double* b, int L) {
+void match_lobes(const double* a, double* b, int L, int Lb) {
   std::vector<double> out(size_t(kQ * L));
   std::vector<char> used(size_t(L), 0);
   for (int l = 0; l < L; ++l) {
@@ -225,7 +262,7 @@ void match_lobes(const double* a, double* b, int L) {
     int best = -1;
     double best_d = -2;
     for (int m = 0; m < L; ++m) {
-      if (used[size_t(m)]) continue;
+      if (used[size_t(m)] || (Lb > 0 && (m < Lb) != (l < Lb))) continue;  // same side only
       const double* bm = b + kQ * m;
       sh::asg_frame(float(bm[0]), float(bm[1]), float(bm[2]), x, y, zb);
       double d = sh::dot(za, zb);
@@ -251,6 +288,7 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
     throw std::invalid_argument("asg_fit: the theta_i and h sample counts must be odd and >= 3");
   if (L < 1) throw std::invalid_argument("asg_fit: at least one lobe");
   const FitGrid g = make_grid(sim, refl);
+  const int Lb = back_lobes(L, s.split_sides);
   const int Mb = (M - 1) / 2, Nb = (N - 1) / 2, rows = Mb + 1, cols = Nb + 1, K = g.K;
   double data_max = 0;
   for (size_t sl = 0; sl < sim.slices.size(); ++sl)
@@ -264,8 +302,8 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
   const auto opts = solver_options(s);
 
   // The first corner: greedy start and a single-slice fit; every other corner starts from it.
-  greedy_init(g, g.slice(slice_index(0, 0), 0), L, s.mu_max, node(0, 0));
-  single_slice_fit(g, g.slice(slice_index(0, 0), 0), L, s, c_max, node(0, 0));
+  greedy_init(g, g.slice(slice_index(0, 0), 0), L, Lb, s.mu_max, node(0, 0));
+  single_slice_fit(g, g.slice(slice_index(0, 0), 0), L, Lb, s, c_max, node(0, 0));
   for (int bm = 0; bm < Mb; ++bm)
     for (int bn = 0; bn < Nb; ++bn) {
       const int ci[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
@@ -317,8 +355,8 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
           if (!is_free) {
             pb.SetParameterBlockConstant(ptr[size_t(c)]);
           } else {
-            clamp_to_bounds(ptr[size_t(c)], L, s.mu_max, c_max);
-            set_bounds(pb, ptr[size_t(c)], L, s.mu_max, c_max);
+            clamp_to_bounds(ptr[size_t(c)], L, Lb, s.mu_max, c_max);
+            set_bounds(pb, ptr[size_t(c)], L, Lb, s.mu_max, c_max);
           }
         }
         ceres::Solver::Summary sum;
@@ -330,10 +368,10 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
         const int c = free_corners[f];
         const double* fs = g.slice(slice_index(2 * ci[c][0], 2 * ci[c][1]), 0);
         std::vector<double> greedy(size_t(kQ * L));
-        greedy_init(g, fs, L, s.mu_max, greedy.data());
+        greedy_init(g, fs, L, Lb, s.mu_max, greedy.data());
         if (neighbour[f]) {
           qa.emplace_back(neighbour[f], neighbour[f] + kQ * L);
-          match_lobes(neighbour[f], greedy.data(), L);
+          match_lobes(neighbour[f], greedy.data(), L, Lb);
           qb.push_back(greedy);
         } else {
           qa.emplace_back(node(0, 0), node(0, 0) + kQ * L);

@@ -164,3 +164,39 @@ TEST(AsgFit, RealPlyFitIsMonotoneInSigmaAndFiniteAtTheExtremes) {
           ASSERT_TRUE(std::isfinite(loom::asg_table_eval(r, th, h, sg, w)));
         }
 }
+
+TEST(AsgFit, SplitSidesKeepTheBackscatterOfARealPly) {
+  // A ply scatters most of a beam forward in a sharp peak and part of it backward, broadly. The
+  // fitted lobes must keep both: the energy of the fit on each side of the ply's cross-section
+  // (towards the beam's source or away from it), by quadrature of the fitted mixture, against
+  // the simulation's own binned energy on that side.
+  loom::YarnSpec y;
+  auto p = loom::ply_params_from_yarn(y);
+  auto st = loom::ply_sim_settings(loom::Quality::Draft);
+  st.theta_i_count = 5, st.h_count = 5, st.rays_per_slice = 4000;
+  st.sigmas = {0.0};
+  auto sim = loom::simulate_ply_scattering(p, y.ior, st);
+  auto t = loom::asg_fit_high(sim, loom::asg_fit_settings(loom::Quality::Draft, false));
+  ASSERT_GE(t.lobes, 2);
+  const loom::PlySimSlice& sl = sim.slices[size_t(2 * 5 + 2)];  // theta_i = 0, h = 0
+  const loom::Vec3d wi{0, std::cos(sl.theta_i), std::sin(sl.theta_i)};
+  auto back_of = [&](const loom::Vec3d& w) { return w.x * wi.x + w.y * wi.y + w.z * wi.z > 0; };
+  double data[2] = {0, 0}, fit[2] = {0, 0};
+  for (int a = 0; a < st.theta_o_count; ++a)
+    for (int b = 0; b < st.phi_o_count; ++b) {
+      const loom::Vec3d w = loom::ply_sim_bin_direction(st, a, b);
+      data[back_of(w) ? 0 : 1] +=
+          sl.high[size_t(a) * size_t(st.phi_o_count) + size_t(b)] * loom::ply_sim_bin_solid_angle(st, a);
+    }
+  const int S = 128;
+  for (int i = 0; i < S; ++i)
+    for (int j = 0; j < 2 * S; ++j) {
+      const double z = -1 + (i + 0.5) * 2.0 / S, r = std::sqrt(1 - z * z), ph = (j + 0.5) * M_PI / S;
+      const loom::Vec3d w{r * std::cos(ph), r * std::sin(ph), z};
+      fit[back_of(w) ? 0 : 1] +=
+          loom::asg_table_eval(t, sl.theta_i, sl.h, 0.0, w) * (2.0 / S) * (M_PI / S);
+    }
+  ASSERT_GT(data[0], 0.05) << "this ply scatters little backward; the test needs a ply that does";
+  EXPECT_GT(fit[0], 0.4 * data[0]) << "backward: data " << data[0] << ", fit " << fit[0];
+  EXPECT_NEAR(fit[1], data[1], 0.3 * data[1]) << "forward";
+}
