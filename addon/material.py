@@ -256,9 +256,15 @@ def _build_osl(mat, atlas_dir, manifest, scale):
         raise OSLBuildError("; ".join(messages) or "the shader did not compile")
     if manifest.get("tier", "surface") == "raywave":
         params, values = node_mode_raywave.osl_parameters(manifest)
+        # Every ray-wave parameter matters (a texture left empty renders wrongly in silence):
+        # a shader without one of them is not the shader this add-on was written for.
+        missing = sorted(n for n in (*params, *values) if n not in script.inputs)
+        if missing:
+            nt.nodes.remove(script)
+            raise OSLBuildError(f"{node_mode_raywave.SHADER} lacks the parameters "
+                                f"{', '.join(missing)}")
         for name, value in values.items():
-            if name in script.inputs:
-                script.inputs[name].default_value = value
+            script.inputs[name].default_value = value
     else:
         params = {name: name for name in manifest["textures"]}
     files = {param: manifest["textures"][name]["file"] for param, name in params.items()

@@ -379,6 +379,19 @@ def atlas_problem(manifest: dict) -> str | None:
     got = list(textures[rw["shading"]["microfacet_albedo"]].get("size", []))
     if got != [n, n]:
         return f"microfacet albedo LUT is {got}, the shaders expect {[n, n]}"
+    # The tables' sizes against the grids (raywave_lobes.h: asg_node_uv, asg_tint_uv).
+    g = _grid(manifest)
+    rows, cols = g["m"] // 2 + 1, g["n"] // 2 + 1
+    parts = int(K["LOOM_RAYWAVE_PARTS"])
+    for y in ("warp", "weft"):
+        files = rw["yarns"][y]["files"]
+        want = {files["high"]: [parts * g["high_lobes"] * cols, rows],
+                files["refl"]: [parts * g["refl_lobes"] * cols, rows],
+                files["tint"]: [g["high_lobes"] * (cols - 1), rows - 1]}
+        for name, size in want.items():
+            got = list(textures[name].get("size", []))
+            if got != size:
+                return f"{name} is {got}, the grids say {size}: re-bake the atlas"
     return None
 
 

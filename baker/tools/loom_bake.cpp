@@ -661,9 +661,14 @@ int main(int argc, char** argv) {
                     : loom::raywave_eval(
                           rd, loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi, vo, e);
         const float c = std::max(std::fabs(vi.z), 1e-6f);
+        // One mixture for both backends (--backend is not used): the microfacet normals are
+        // lifted alike by SVM and OSL; SVM's Translucent BSDF would lift its normal where the
+        // shading normal differs from the geometric one, which the emulator's tangent frame (flat
+        // geometry) does not have.
         std::cout << json{{"f", {fc[0] / c, fc[1] / c, fc[2] / c}},
                           {"f_cos", fc},
                           {"evaluator", evaluator},
+                          {"backend", "any (flat geometry)"},
                           {"tier", "raywave"}}
                          .dump()
                   << std::endl;

@@ -48,7 +48,8 @@ PAIRS = [
 # Node mode is compared with the emulator's node-mode backend (loom-bake eval --backend nodes):
 # Cycles' SVM Translucent BSDF lifts its normal with ensure_valid_specular_reflection when the
 # material's Bump Map Correction is on (kernel/svm/closure.h), OSL's translucent() does not; the
-# emulator models both.
+# emulator models both. (Ray-wave atlases have one mixture for both backends: on this flat swatch
+# the shading normal is the geometric one, so nothing is lifted; loom-bake says "backend": "any".)
 SUN = 3.0
 REPEATS_PER_METER = 173.3  # irrational-ish: no aliasing with the pixel grid
 

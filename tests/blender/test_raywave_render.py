@@ -94,11 +94,30 @@ def check_osl_parameters(atlas):
     print(f"loom-test: OSL parameters: {len(tex)} textures, {len(values)} values, all known")
 
 
+def check_table_sizes(atlas):
+    """A table whose size does not fit the manifest's grids is refused (a look-up would read
+    the wrong texels in silence)."""
+    import copy
+
+    from loom import bakery, node_mode_raywave
+
+    m = bakery.read_manifest(atlas)
+    assert node_mode_raywave.atlas_problem(m) is None, node_mode_raywave.atlas_problem(m)
+    for part in ("high", "refl", "tint"):
+        bad = copy.deepcopy(m)
+        name = bad["raywave"]["yarns"]["warp"]["files"][part]
+        bad["textures"][name]["size"][0] += 1
+        why = node_mode_raywave.atlas_problem(bad)
+        assert why and name in why and "re-bake" in why, (part, why)
+    print("loom-test: table sizes checked against the grids")
+
+
 def main():
     args = lt.parse_args(extra_args)
     os.makedirs(args.out, exist_ok=True)
     lt.enable_addon()
     check_osl_parameters(args.organza)
+    check_table_sizes(args.organza)
     means = {}
     for name, atlas in (("organza", args.organza), ("wool", args.wool)):
         for light in LIGHTS:
