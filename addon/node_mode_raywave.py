@@ -17,8 +17,9 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
 * Closures: each lobe has a Glossy BSDF (Beckmann, anisotropic) and a Refraction BSDF (Beckmann),
   and a Translucent BSDF, whose Color is the lobe's weight times 1 for the kind
   raywave_lobe_closure picked and 0 for the others (Cycles allocates no closure of zero weight);
-  the diffuse forward part (Eq. S.22) is one more Translucent BSDF (why not one for all:
-  build_lobe_group).
+  the diffuse forward part (Eq. S.22) and the forward energy residual share one more
+  Translucent BSDF (why not one for all: build_lobe_group), and the backward energy residual is
+  a Diffuse BSDF (Roughness 0: Cycles' Lambertian diffuse closure).
   - Glossy BSDF (Beckmann) has no alpha inputs: Cycles (kernel/svm/closure.h, 4.2 to 5.x) sets
     alpha = saturate(Roughness)^2, and for 0 < Anisotropy <= 0.99 alpha_x = alpha (1 - Anisotropy)
     along Tangent, alpha_y = alpha / (1 - Anisotropy). So alpha_x = a_x <= alpha_y = a_y needs
@@ -48,16 +49,16 @@ MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
                       "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_CLOSED_FORM_MU",
-                      "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_MU_MAX", "LOOM_HORIZON_DIRS",
-                      "LOOM_HORIZON_SOFTNESS")
+                      "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_INTEGRAL_WIDTHS", "LOOM_ASG_MU_MAX",
+                      "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "ac930a5ea0a923df",
+    "include/loom/raywave_lobes.h": "f13059f7d48bcf84",
     "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
-    "include/loom/asg.h": "67ed9b70ace0eaa7",
-    "loom_cloth_raywave.osl": "91ba99ef3483aa07",
+    "include/loom/asg.h": "837c6aaf61b2da26",
+    "loom_cloth_raywave.osl": "32994df4cd8d0ac7",
 }
 
 
@@ -82,31 +83,50 @@ def asg_frame(theta_z, phi_z, phi_xy):
     return x0 * ca - y0 * sa, x0 * sa + y0 * ca, z
 
 
-def asg_disk_radial(k):
-    """asg.h: asg_disk_radial(k) = k < 1e-4 ? 0.5 - 0.25 k : (1 - exp(-k)) / (2 k)."""
-    return select(k < 1e-4, 0.5 - 0.25 * k, (1.0 - exp(-k)) / (2.0 * k))
+def asg_erf(x):
+    """asg.h: asg_erf(x) (Abramowitz and Stegun 7.1.26), x >= 0.
+
+        t = 1 / (1 + 0.3275911 x);  1 - t (a1 + t (a2 + t (a3 + t (a4 + t a5)))) exp(-x^2)"""
+    t = 1.0 / (1.0 + 0.3275911 * x)
+    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741
+                                                       + t * (-1.453152027 + t * 1.061405429))))
+    return 1.0 - poly * exp(-(x * x))
+
+
+def asg_chord(mu, r):
+    """asg.h: asg_chord(mu, r) = mu r^2 < 1e-4 ? 2 r (1 - mu r^2 / 3)
+    : sqrt(pi) / sqrt(mu) asg_erf(sqrt(mu) r)."""
+    x2 = mu * r * r
+    sm = sqrt(mu)
+    return select(x2 < 1e-4, 2.0 * r * (1.0 - x2 * (1.0 / 3.0)),
+                  math.sqrt(math.pi) / max_(sm, 1e-30) * asg_erf(sm * r))
 
 
 def asg_integral(mu1_in, mu2_in, c, K):
     """asg.h: asg_integral(mu1, mu2, c).
 
-        c > 0 or 0;  mu = clamp(mu_in, 0, MU_MAX)
-        min(mu1, mu2) >= CLOSED_FORM_MU: c pi / sqrt(mu1 mu2)
-        else 4 c dphi sum_{i < STEPS/4} asg_disk_radial(mu1 cos^2 ph_i + mu2 sin^2 ph_i),
-             ph_i = (i + 0.5) dphi, dphi = 2 pi / STEPS
-    (the cosines of the fixed angles are Python constants)."""
+        c > 0 or 0;  mu = clamp(mu_in, 0, MU_MAX);  lo, hi = min, max(mu1, mu2)
+        lo >= CLOSED_FORM_MU: c pi / sqrt(lo hi)
+        else Psi = asin(min(1, WIDTHS / sqrt(max(hi, 1e-12)))), dpsi = Psi / STEPS,
+             2 c dpsi sum_{i < STEPS} exp(-hi sin^2 ps_i) asg_chord(lo, cos ps_i) cos ps_i,
+             ps_i = (i + 0.5) dpsi"""
     mu_max = K["LOOM_ASG_MU_MAX"]
     mu1 = clamp(mu1_in, 0.0, mu_max)
     mu2 = clamp(mu2_in, 0.0, mu_max)
-    closed = c * math.pi / sqrt(mu1 * mu2)
+    lo = min_(mu1, mu2)
+    hi = max_(mu1, mu2)
+    closed = c * math.pi / sqrt(lo * hi)
     steps = int(K["LOOM_ASG_INTEGRAL_STEPS"])
-    dphi = 2.0 * math.pi / steps
+    psi_max = asin(min_(1.0, K["LOOM_ASG_INTEGRAL_WIDTHS"] / sqrt(max_(hi, 1e-12))))
+    dpsi = psi_max * (1.0 / steps)
     terms = []
-    for i in range(steps // 4):
-        ph = (i + 0.5) * dphi
-        terms.append(asg_disk_radial(mu1 * (math.cos(ph) ** 2) + mu2 * (math.sin(ph) ** 2)))
-    numeric = 4.0 * c * node_mode._balanced_sum(terms) * dphi
-    value = select(min_(mu1, mu2) < K["LOOM_ASG_CLOSED_FORM_MU"], numeric, closed)
+    for i in range(steps):
+        ps = dpsi * (i + 0.5)
+        sb = sin(ps)
+        cb = cos(ps)
+        terms.append(exp(-(hi * sb * sb)) * asg_chord(lo, cb) * cb)
+    numeric = 2.0 * c * node_mode._balanced_sum(terms) * dpsi
+    value = select(lo < K["LOOM_ASG_CLOSED_FORM_MU"], numeric, closed)
     return select(c > 0.0, value, 0.0)
 
 
@@ -299,6 +319,26 @@ def raywave_lobe_weight(is_refl, is_refr, integral, albedo, tint, open_, vis_v, 
 # ======================================================================= double_layer_factors.h
 
 
+def raywave_residual_uv(theta_i, h, theta_lo, theta_hi, m, n, side):
+    """raywave_lobes.h: raywave_residual_uv(theta_i, h, theta_lo, theta_hi, m, n, side) -> (s, tv).
+
+        fi = 2 asg_node_coord(theta_i, lo, hi, m);  fj = 2 asg_node_coord(h, -1, 1, n)
+        s = (side n + fj + 0.5) / (2 n);  tv = (fi + 0.5) / m"""
+    fi = 2.0 * asg_node_coord(theta_i, theta_lo, theta_hi, m)
+    fj = 2.0 * asg_node_coord(h, -1.0, 1.0, n)
+    return (fj + (side * n + 0.5)) * (1.0 / (2.0 * n)), (fi + 0.5) * (1.0 / m)
+
+
+def raywave_residual_diffuse_weight(e_b, open_, vis_v, rho_b):
+    """raywave_lobes.h: raywave_residual_diffuse_weight = open vis_v rho_b e_b."""
+    return rho_b * e_b * (open_ * vis_v)
+
+
+def raywave_residual_translucent_weight(e_f, open_, rho_f, s_blend):
+    """raywave_lobes.h: raywave_residual_translucent_weight = open (1 - s) rho_f e_f."""
+    return rho_f * e_f * (open_ * (1.0 - s_blend))
+
+
 def double_layer_uv(xi, block, theta_count, phi_count):
     """double_layer_factors.h: double_layer_uv(xi, block, theta_count, phi_count) -> (s, tv).
 
@@ -365,7 +405,7 @@ def atlas_problem(manifest: dict) -> str | None:
                               *rw["shading"]["factors"].values()}
         for y in ("warp", "weft"):
             files = rw["yarns"][y]["files"]
-            needed |= {files["high"], files["refl"], files["tint"]}
+            needed |= {files["high"], files["refl"], files["tint"], files["residual"]}
     except (KeyError, TypeError) as exc:
         return (f"not a ray-wave atlas with render tables (manifest lacks {exc}): re-bake it "
                 f"with this version of loom-bake")
@@ -387,7 +427,8 @@ def atlas_problem(manifest: dict) -> str | None:
         files = rw["yarns"][y]["files"]
         want = {files["high"]: [parts * g["high_lobes"] * cols, rows],
                 files["refl"]: [parts * g["refl_lobes"] * cols, rows],
-                files["tint"]: [g["high_lobes"] * (cols - 1), rows - 1]}
+                files["tint"]: [g["high_lobes"] * (cols - 1), rows - 1],
+                files["residual"]: [2 * g["n"], g["m"]]}
         for name, size in want.items():
             got = list(textures[name].get("size", []))
             if got != size:
@@ -406,6 +447,7 @@ def osl_parameters(manifest: dict) -> tuple[dict, dict]:
         tex[f"high_{y}"] = files["high"]
         tex[f"refl_{y}"] = files["refl"]
         tex[f"tint_{y}"] = files["tint"]
+        tex[f"residual_{y}"] = files["residual"]
     tex["factors_front"] = rw["shading"]["factors"]["front"]
     tex["factors_back"] = rw["shading"]["factors"]["back"]
     tex["microfacet_albedo"] = rw["shading"]["microfacet_albedo"]
@@ -667,16 +709,39 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                     b.link(args[n], node.inputs[n])
                 lobe_outputs.append(node)
 
+    # ---------------------------------------------------------------- energy residual
+    with b.block("Energy residual (raywave_lobes.h: raywave_residual_uv, weights)"):
+        res = {}
+        for side in (0, 1):
+            rs, rt = raywave_residual_uv(theta_i, h, g["theta_min"], g["theta_max"], M, N_, side)
+            per_yarn = {}
+            for y in ("warp", "weft"):
+                f = tex_params[f"residual_{y}"]
+                if f not in per_yarn:
+                    per_yarn[f], _ = table(f, rs, rt, what=f"side {side}")
+            e_w = per_yarn[tex_params["residual_warp"]]
+            e_e = per_yarn[tex_params["residual_weft"]]
+            res[side] = e_w if e_w is e_e else select(weft, e_e, e_w)
+        w_diffuse = b.label(raywave_residual_diffuse_weight(res[0], open_, vis_v, rho_b),
+                            "residual diffuse weight")
+        w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, rho_f, g["blend"]),
+                           "residual translucent weight")
+
     # ---------------------------------------------------------------- closures
     with b.block("Closures (loom_cloth_raywave.osl)"):
-        tr = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * open s F_total")
-        b.link(f_total * (open_ * g["blend"]), tr.inputs["Color"])
+        tr = b.new("ShaderNodeBsdfTranslucent",
+                   label="translucent(N) * (open s F_total + residual translucent weight)")
+        b.link(f_total * (open_ * g["blend"]) + w_transl, tr.inputs["Color"])
         b.link(Nw, tr.inputs["Normal"])
+        dif = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * residual diffuse weight")
+        dif.inputs["Roughness"].default_value = 0.0
+        b.link(w_diffuse, dif.inputs["Color"])
+        b.link(Nw, dif.inputs["Normal"])
         gap = 1.0 - open_
         transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * (1 - open)")
         b.link(vec(gap, gap, gap), transp.inputs["Color"])
         total = None
-        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"],
+        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"], dif.outputs["BSDF"],
                     *(n.outputs["BSDF"] for n in lobe_outputs)):
             if total is None:
                 total = out

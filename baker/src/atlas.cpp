@@ -278,7 +278,8 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
                                        "(another baker's layout: re-bake the atlas)",
                                        yarn, y.value("node_layout", json("missing")).dump(),
                                        kAsgNodeLayout));
-        for (const char* f : {"high", "high_scale", "refl", "tint"}) {
+        for (const char* f : {"high", "high_scale", "refl", "tint", "high_residual",
+                              "refl_residual", "residual"}) {
           const json& name = y["files"].value(f, json());
           if (!name.is_string() || !tex.contains(name.get<std::string>()))
             errors.push_back(fmt::format("raywave.yarns.{}.files.{}: not a texture of the atlas",
@@ -566,6 +567,12 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                     "f_refl ASG corner nodes, two texels per (h node, lobe) in lobe-major columns, rows "
                     "theta_i nodes "
                     "(layout: baker/include/loom/ply_tables.h)");
+          add_table(asg_residual_image(pt.high), entry["files"]["high_residual"], {"energy"},
+                    "f_high energy the lobes miss (baker/include/loom/asg_residual.h), column "
+                    "side N + n (0 backward, 1 forward), row m K + k");
+          add_table(asg_residual_image(pt.refl), entry["files"]["refl_residual"], {"energy"},
+                    "f_refl energy the lobes miss (baker/include/loom/asg_residual.h), column "
+                    "side N + n (0 backward, 1 forward), row m");
           raywave["yarns"][yarn] = entry;
         }
         // Double-layer factors (Eq. S.20): warp over weft seen from the front, weft over warp
@@ -764,13 +771,23 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
             sig[i][size_t(c)] = entry["absorption"]["sigma_rgb_per_mm"][size_t(c)].get<double>();
           const Image nodes = read_table(entry["files"]["high"].get<std::string>());
           const Image scale = read_table(entry["files"]["high_scale"].get<std::string>());
-          const AsgTable high = asg_table_from_images(entry, "high", nodes, &scale);
+          const Image high_res = read_table(entry["files"]["high_residual"].get<std::string>());
+          const Image refl_nodes = read_table(entry["files"]["refl"].get<std::string>());
+          const Image refl_res = read_table(entry["files"]["refl_residual"].get<std::string>());
+          const AsgTable high = asg_table_from_images(entry, "high", nodes, &scale, &high_res);
+          const AsgTable refl = asg_table_from_images(entry, "refl", refl_nodes, nullptr, &refl_res);
           const std::string name = std::string("ply_tint_") + yarn;
           add_table(ply_tint_image(high, sig[i]), name, {"s_r", "s_g", "s_b"},
                     "f_high lobe amplitude scale (Eq. S.10, S.11) at the yarn's absorption per "
                     "colour channel, column lobe N' + block column, row block row "
                     "(osl/include/loom/raywave_lobes.h)");
           entry["files"]["tint"] = name;
+          const std::string rname = std::string("ply_residual_") + yarn;
+          add_table(ply_residual_rgb_image(high, refl, sig[i]), rname, {"r", "g", "b"},
+                    "energy residual of f_refl + f_high (baker/include/loom/asg_residual.h) at the "
+                    "yarn's absorption per colour channel, column side N + n, row m "
+                    "(osl/include/loom/raywave_lobes.h: raywave_residual_uv)");
+          entry["files"]["residual"] = rname;
         }
         std::array<double, 3> sig_layers;
         for (int c = 0; c < 3; ++c)

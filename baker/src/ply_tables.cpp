@@ -1,5 +1,6 @@
 #include "loom/ply_tables.h"
 
+#include "loom/asg_residual.h"
 #include "loom/multi_ply.h"
 #include "loom/shading.h"
 
@@ -28,6 +29,8 @@ PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progre
   if (progress) progress(stage, 0.5);
   out.high = asg_fit_high(sim, asg_fit_settings(q, false));
   out.refl = asg_fit_refl(sim, asg_fit_settings(q, true));
+  out.high.residual = asg_fit_residual(sim, out.high, false);
+  out.refl.residual = asg_fit_residual(sim, out.refl, true);
   auto t2 = std::chrono::steady_clock::now();
   if (progress) progress(stage, 1.0);
   out.rays = sim.rays;
@@ -65,12 +68,34 @@ Image asg_scale_image(const AsgTable& t) {
   return img;
 }
 
+Image asg_residual_image(const AsgTable& t) {
+  const int M = int(t.theta_i.size()), N = int(t.h.size()), K = int(t.sigmas.size());
+  if (t.residual.size() != size_t(M) * size_t(N) * size_t(K) * 2)
+    throw std::logic_error("asg_residual_image: the table has no residual");
+  Image img(2 * N, M * K, 1);
+  for (int m = 0; m < M; ++m)
+    for (int n = 0; n < N; ++n)
+      for (int k = 0; k < K; ++k)
+        for (int side = 0; side < 2; ++side)
+          img.px(side * N + n, m * K + k)[0] =
+              float(t.residual[size_t(((m * N + n) * K + k) * 2 + side)]);
+  return img;
+}
+
 namespace {
 json grid_json(const std::vector<double>& g) {
   return {{"min", g.front()}, {"max", g.back()}, {"count", g.size()}};
 }
 json table_json(const AsgTable& t) {
+  // Mean residual energy per side at sigma = 0 (asg_residual.h), over the slices.
+  double rb = 0, rf = 0;
+  const size_t K = t.sigmas.size(), S = t.theta_i.size() * t.h.size();
+  for (size_t s = 0; s < S && t.residual.size() == S * K * 2; ++s) {
+    rb += t.residual[s * K * 2] / double(S);
+    rf += t.residual[s * K * 2 + 1] / double(S);
+  }
   return {{"lobes", t.lobes},
+          {"residual_mean_sigma0", {{"backward", rb}, {"forward", rf}}},
           {"theta_i", grid_json(t.theta_i)},
           {"h", grid_json(t.h)},
           {"sigma_per_mm", t.sigmas},
@@ -100,7 +125,9 @@ json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
           {"files",
            {{"high", "ply_high_" + yarn},
             {"high_scale", "ply_high_scale_" + yarn},
-            {"refl", "ply_refl_" + yarn}}},
+            {"refl", "ply_refl_" + yarn},
+            {"high_residual", "ply_high_residual_" + yarn},
+            {"refl_residual", "ply_refl_residual_" + yarn}}},
           {"simulation",
            {{"rays", t.rays},
             {"rays_per_slice", t.sim.rays_per_slice},
@@ -118,7 +145,7 @@ json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
 }
 
 AsgTable asg_table_from_images(const json& entry, const std::string& which, const Image& nodes,
-                               const Image* scale) {
+                               const Image* scale, const Image* residual) {
   if (!entry.is_object() || !entry.contains(which) || !entry[which].is_object())
     throw std::runtime_error(fmt::format("raywave table entry has no \"{}\"", which));
   if (entry.value("node_layout", "") != kAsgNodeLayout)
@@ -173,6 +200,23 @@ AsgTable asg_table_from_images(const json& entry, const std::string& which, cons
   for (const AsgLobe& q : t.nodes)
     for (double v : {q.theta_z, q.phi_z, q.phi_xy, q.mu1, q.mu2, q.c})
       if (!std::isfinite(v)) throw std::runtime_error(which + " nodes: non-finite lobe parameter");
+  if (residual) {
+    const int M = int(t.theta_i.size()), N = int(t.h.size());
+    if (residual->width != 2 * N || residual->height != M * K || residual->channels != 1)
+      throw std::runtime_error(fmt::format("{} residual: image is {}x{}x{}, expected {}x{}x1",
+                                           which, residual->width, residual->height,
+                                           residual->channels, 2 * N, M * K));
+    t.residual.resize(size_t(M) * size_t(N) * size_t(K) * 2);
+    for (int m = 0; m < M; ++m)
+      for (int n = 0; n < N; ++n)
+        for (int k = 0; k < K; ++k)
+          for (int side = 0; side < 2; ++side) {
+            const float v = residual->px(side * N + n, m * K + k)[0];
+            if (!std::isfinite(v) || v < 0)
+              throw std::runtime_error(which + " residual: expected finite values >= 0");
+            t.residual[size_t(((m * N + n) * K + k) * 2 + side)] = v;
+          }
+  }
   return t;
 }
 
@@ -187,9 +231,15 @@ LoadedPlyTables load_ply_tables(const Atlas& a, const std::string& yarn) {
   if (!out.entry.is_object())
     throw std::runtime_error(fmt::format("raywave.yarns.{}: missing", yarn));
   const json& f = out.entry["files"];
+  for (const char* k : {"high", "high_scale", "refl", "high_residual", "refl_residual"})
+    if (!f.is_object() || !f.contains(k) || !f[k].is_string())
+      throw std::runtime_error(fmt::format("raywave.yarns.{}.files.{}: missing (an atlas from an "
+                                           "older loom-bake: re-bake it)", yarn, k));
   const Image& scale = a.map(f["high_scale"].get<std::string>());
-  out.high = asg_table_from_images(out.entry, "high", a.map(f["high"].get<std::string>()), &scale);
-  out.refl = asg_table_from_images(out.entry, "refl", a.map(f["refl"].get<std::string>()), nullptr);
+  out.high = asg_table_from_images(out.entry, "high", a.map(f["high"].get<std::string>()), &scale,
+                                   &a.map(f["high_residual"].get<std::string>()));
+  out.refl = asg_table_from_images(out.entry, "refl", a.map(f["refl"].get<std::string>()), nullptr,
+                                   &a.map(f["refl_residual"].get<std::string>()));
   return out;
 }
 

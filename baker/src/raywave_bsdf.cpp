@@ -1,5 +1,7 @@
 #include "loom/raywave_bsdf.h"
 
+#include "loom/asg_residual.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
@@ -48,6 +50,25 @@ float safe_ratio(double a, double b) {
 }
 
 }  // namespace
+
+Image ply_residual_rgb_image(const AsgTable& high, const AsgTable& refl,
+                             const std::array<double, 3>& sigma_rgb) {
+  const int M = int(high.theta_i.size()), N = int(high.h.size());
+  if (refl.theta_i.size() != size_t(M) || refl.h.size() != size_t(N))
+    throw std::invalid_argument("ply_residual_rgb_image: f_high and f_refl grids differ");
+  Image img(2 * N, M, 3);
+  for (int m = 0; m < M; ++m)
+    for (int n = 0; n < N; ++n)
+      for (int c = 0; c < 3; ++c) {
+        double hb, hf, rb, rf;
+        asg_residual_at(high, high.theta_i[size_t(m)], high.h[size_t(n)], sigma_rgb[size_t(c)], hb,
+                        hf);
+        asg_residual_at(refl, high.theta_i[size_t(m)], high.h[size_t(n)], 0.0, rb, rf);
+        img.px(n, m)[c] = float(hb + rb);
+        img.px(N + n, m)[c] = float(hf + rf);
+      }
+  return img;
+}
 
 Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb) {
   const int Mb = int(high.theta_i.size() / 2), Nb = int(high.h.size() / 2), L = high.lobes,
@@ -186,6 +207,15 @@ RaywaveData load_raywave(const Atlas& a) {
     d.nodes_high[y] = &a.map(e["files"]["high"].get<std::string>());
     d.nodes_refl[y] = &a.map(e["files"]["refl"].get<std::string>());
     d.tint[y] = &a.map(e["files"]["tint"].get<std::string>());
+    if (!e["files"].contains("residual"))
+      throw std::runtime_error(fmt::format("raywave.yarns.{}.files.residual: missing (an atlas from "
+                                           "an older loom-bake: re-bake it)", yarn));
+    d.residual[y] = &a.map(e["files"]["residual"].get<std::string>());
+    const int M = int(d.yarn[y].high.theta_i.size()), N = int(d.yarn[y].high.h.size());
+    if (d.residual[y]->width != 2 * N || d.residual[y]->height != M)
+      throw std::runtime_error(fmt::format("raywave.yarns.{}.files.residual: image is {}x{}, the "
+                                           "grids say {}x{}", yarn, d.residual[y]->width,
+                                           d.residual[y]->height, 2 * N, M));
   }
   const json& dl = rw["double_layer"];
   d.blend = dl.value("blend", 0.5);
@@ -215,13 +245,14 @@ struct RaywavePoint::Impl {
   float hor[LOOM_HORIZON_DIRS] = {};
   // model
   std::vector<AsgLobe> refl, high[3];
+  std::array<float, 3> res_b{}, res_f{};  ///< energy residual per side (asg_residual.h)
   std::array<float, 3> rho_b{}, rho_f{}, f_total{};
   // closures
   std::vector<cycles::MicrofacetReflection> mf;
   std::vector<std::array<float, 3>> mf_w;
   std::vector<cycles::MicrofacetRefraction> refr;
   std::vector<std::array<float, 3>> refr_w;
-  std::array<float, 3> transl_w{};
+  std::array<float, 3> transl_w{}, diffuse_w{};
   std::vector<RaywaveClosure> list;
 };
 
@@ -255,6 +286,11 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
       q.rho_b[size_t(c)] = safe_ratio(f.Btotal, f.Bt);
       q.rho_f[size_t(c)] = safe_ratio(f.Ftotal, f.Ft);
       q.f_total[size_t(c)] = float(std::max(f.Ftotal, 0.0));
+      double rb, rf, hb, hf;
+      asg_residual_at(d.yarn[y].refl, theta_i, h, 0.0, rb, rf);
+      asg_residual_at(d.yarn[y].high, theta_i, h, d.sigma_rgb[y][size_t(c)], hb, hf);
+      q.res_b[size_t(c)] = float(rb + hb);
+      q.res_f[size_t(c)] = float(rf + hf);
     }
     return q;
   }
@@ -333,6 +369,33 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
     q.transl_w[size_t(c)] += diffuse.weight[size_t(c)];
   }
   q.list.push_back(diffuse);
+  // The energy residual (raywave_lobes.h): diffuse reflection and diffuse transmission.
+  {
+    const AsgTable& tab = d.yarn[y_].high;
+    float eb[4], ef[4], s, tv;
+    raywave_residual_uv(theta_i, h, float(tab.theta_i.front()), float(tab.theta_i.back()),
+                        int(tab.theta_i.size()), int(tab.h.size()), 0, s, tv);
+    sample_clamped(*d.residual[y_], s, tv, eb);
+    raywave_residual_uv(theta_i, h, float(tab.theta_i.front()), float(tab.theta_i.back()),
+                        int(tab.theta_i.size()), int(tab.h.size()), 1, s, tv);
+    sample_clamped(*d.residual[y_], s, tv, ef);
+    const vec3 wd = raywave_residual_diffuse_weight(vec3(eb[0], eb[1], eb[2]), q.open, q.vis_v,
+                                                    vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]));
+    const vec3 wt = raywave_residual_translucent_weight(
+        vec3(ef[0], ef[1], ef[2]), q.open, vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s);
+    RaywaveClosure rd, rt;
+    rd.kind = 3;
+    rt.kind = 1;
+    rd.N = rt.N = vec3(0, 0, 1);
+    rd.weight = {wd.x, wd.y, wd.z};
+    rt.weight = {wt.x, wt.y, wt.z};
+    for (int c = 0; c < 3; ++c) {
+      q.diffuse_w[size_t(c)] += rd.weight[size_t(c)];
+      q.transl_w[size_t(c)] += rt.weight[size_t(c)];
+    }
+    q.list.push_back(rd);
+    q.list.push_back(rt);
+  }
   return q;
 }
 
@@ -348,20 +411,22 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
     for (int c = 0; c < 3; ++c) {
       const double f = fr + asg_mixture_eval(q.high[c], lp);
       double v;
+      const double lambert = std::fabs(L.z) / M_PI;  // the residual's lobes (asg_residual.h)
       if (L.z > 0) {
         const float vis_l = q.back ? 1.0f : horizon_visibility(L, const_cast<float*>(q.hor));
-        v = q.open * q.vis_v * vis_l * q.rho_b[size_t(c)] * f;
+        v = q.open * q.vis_v * q.rho_b[size_t(c)] * (vis_l * f + q.res_b[size_t(c)] * lambert);
       } else {
-        v = q.open * ((1 - q.s) * q.rho_f[size_t(c)] * f +
-                      q.s * q.f_total[size_t(c)] * std::fabs(L.z) / M_PI);
+        v = q.open * ((1 - q.s) * q.rho_f[size_t(c)] * (f + q.res_f[size_t(c)] * lambert) +
+                      q.s * q.f_total[size_t(c)] * lambert);
       }
       out[size_t(c)] = float(v);
     }
     return out;
   }
   const vec3 n(0, 0, 1);
-  const float tr = cycles::translucent_eval(n, L, n);
-  for (int c = 0; c < 3; ++c) out[size_t(c)] = q.transl_w[size_t(c)] * tr;
+  const float tr = cycles::translucent_eval(n, L, n), df = cycles::diffuse_eval(n, L, n);
+  for (int c = 0; c < 3; ++c)
+    out[size_t(c)] = q.transl_w[size_t(c)] * tr + q.diffuse_w[size_t(c)] * df;
   for (size_t i = 0; i < q.refr.size(); ++i) {
     const float g = q.refr[i].eval(L);
     for (int c = 0; c < 3; ++c) out[size_t(c)] += q.refr_w[i][size_t(c)] * g;

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include "loom/asg_residual.h"
 #include "loom/absorption.h"
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
@@ -574,6 +575,12 @@ int main(int argc, char** argv) {
       double refl = loom::asg_table_eval(t.refl, th, rw_h, 0, w);
       json out = {{"value", refl + high}, {"refl", refl}, {"high", high}, {"yarn", rw_yarn},
                   {"lobes", {{"high", t.high.lobes}, {"refl", t.refl.lobes}}}};
+      {  // The energy the lobes miss at this (theta_i, h, sigma) (asg_residual.h).
+        double hb, hf, rb, rf;
+        loom::asg_residual_at(t.high, th, rw_h, rw_sigma, hb, hf);
+        loom::asg_residual_at(t.refl, th, rw_h, 0, rb, rf);
+        out["residual_energy"] = {{"backward", hb + rb}, {"forward", hf + rf}};
+      }
       if (rw_raw) {
         auto res = loom::parse_spec(atlas.manifest["spec"]);
         if (!res.ok()) throw std::runtime_error("the atlas's spec does not parse: " + res.errors[0]);

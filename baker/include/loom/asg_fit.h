@@ -71,6 +71,10 @@ struct AsgTable {
   std::vector<double> block_nrmse;  ///< per block, f_0
   double nrmse = 0;                 ///< over all slices, f_0
   std::vector<double> nrmse_per_sigma;  ///< over all slices, per absorption level
+  /// Energy residual (asg_residual.h): what the lobes miss of the simulated energy, per slice
+  /// (theta_i^m, h^n), absorption level k and side (0 backward, 1 forward):
+  /// residual[((m * N + n) * K + k) * 2 + side], N = h.size(). Empty: not computed.
+  std::vector<double> residual;
   int node_rows() const { return int(theta_i.size() / 2) + 1; }
   int node_cols() const { return int(h.size() / 2) + 1; }
   const AsgLobe& node(int i, int j, int l) const {

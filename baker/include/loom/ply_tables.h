@@ -11,6 +11,9 @@
 //   ply_high_scale_<yarn>  scale-downs s_{l,k} (Eq. S.9): one channel, column bn L + l, row
 //                     bm K + k, per fitting block (bm, bn) and absorption level k.
 //   ply_refl_<yarn>   corner nodes of the f_refl fit, the ply_high layout with its own L.
+//   ply_high_residual_<yarn>, ply_refl_residual_<yarn>  the energy residual (asg_residual.h):
+//                     one channel, column side N + n (side 0 backward, 1 forward), row m K + k,
+//                     per slice (theta_i^m, h^n) and absorption level k (K = 1 for f_refl).
 // Grids (theta_i and h uniform, sigma levels in 1/mm), lobe counts and fit errors are in the
 // manifest under "raywave". Identical warp and weft yarns share one set of files.
 #pragma once
@@ -47,12 +50,14 @@ PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progre
 /// Node and scale images of a table (layout above).
 Image asg_nodes_image(const AsgTable& t);
 Image asg_scale_image(const AsgTable& t);
+Image asg_residual_image(const AsgTable& t);
 /// The manifest entry of a yarn's tables (grids, lobe counts, errors, simulation settings).
 nlohmann::json ply_tables_manifest(const PlyTables& t, const std::string& yarn);
 /// Rebuild a table from its images and manifest entry ("high" or "refl"); throws
-/// std::runtime_error naming what is inconsistent.
+/// std::runtime_error naming what is inconsistent. Without a residual image the table has none.
 AsgTable asg_table_from_images(const nlohmann::json& entry, const std::string& which,
-                               const Image& nodes, const Image* scale);
+                               const Image& nodes, const Image* scale,
+                               const Image* residual = nullptr);
 
 /// The f_high and f_refl tables of `yarn` ("warp" or "weft") of a loaded ray-wave atlas; throws
 /// std::runtime_error if the atlas has none.

@@ -35,6 +35,10 @@ namespace loom {
 /// Render tables baked at the yarn colours (layouts in the shared headers).
 /// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high per block at sigma_rgb.
 Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb);
+/// ply_residual_<yarn>: RGB energy residual of f_refl + f_high (asg_residual.h) per slice and
+/// side at sigma_rgb (layout: raywave_residual_uv in raywave_lobes.h).
+Image ply_residual_rgb_image(const AsgTable& high, const AsgTable& refl,
+                             const std::array<double, 3>& sigma_rgb);
 
 /// A double-layer factor table of the atlas (double_layer_front/back) with its grids.
 struct DoubleLayerGrid {
@@ -61,6 +65,7 @@ struct RaywaveData {
   double blend = 0.5;                      ///< s of Eq. S.22
   // Render tables, as the shaders read them.
   const Image *nodes_high[2] = {}, *nodes_refl[2] = {}, *tint[2] = {}, *factors[2] = {};
+  const Image* residual[2] = {};  ///< ply_residual_<yarn>
   const Image* microfacet_albedo = nullptr;
 };
 /// Throws std::runtime_error naming what is missing when the atlas is not a ray-wave atlas with
@@ -68,7 +73,7 @@ struct RaywaveData {
 RaywaveData load_raywave(const Atlas& a);
 
 /// One closure of the mixture (for tests and reports): kind 0 Beckmann reflection, 1 translucent,
-/// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA).
+/// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA), 3 diffuse.
 struct RaywaveClosure {
   int kind = 0;
   shading::vec3 N, T;

@@ -44,6 +44,13 @@
 //     direction lost).
 //   * weights divide by the closure's albedo, floored at LOOM_RAYWAVE_MIN_ALBEDO so that a
 //     closure at grazing angles (E near 0) cannot be scaled into fireflies.
+//   * the energy residual (baker/include/loom/asg_residual.h: what the fitted lobes miss of the
+//     simulated energy, backward and forward in the ply's cross-section) at the yarn's absorption
+//     (`ply_residual_<yarn>`, read bilinearly between slices): backward energy E_b as
+//     diffuse(n_s) with weight open vis_v rho_b E_b, forward energy E_f as translucent(n_s) with
+//     weight open (1 - s) rho_f E_f. The model is the same (a Lambertian lobe of albedo E on each
+//     side, f cos = E |cos| / pi), so this part maps without error. Choice: no horizon term for
+//     the light direction (the residual is light spread by many fibres; vis_v still applies).
 #ifndef LOOM_RAYWAVE_LOBES_H
 #define LOOM_RAYWAVE_LOBES_H
 #include "osl_compat.h"
@@ -266,6 +273,28 @@ LOOM_FN color raywave_lobe_weight(int kind, float integral, float albedo, color 
   if (kind == 2)
     w = asg_microfacet_weight(integral, albedo);
   return w * open * (1.0 - s) * tint * rho_f;
+}
+
+/// Look-up coordinates of the energy residual (`ply_residual_<yarn>`, header comment) of the slice
+/// at (theta_i, h) on the (m x n) slice grid: texel (side n + j, i) holds slice (i, j) of side 0
+/// (backward) or 1 (forward). The coordinate stays between the first and the last texel centre of
+/// its side, so the bilinear look-up interpolates between slices and never across sides.
+LOOM_FN void raywave_residual_uv(float theta_i, float h, float theta_lo, float theta_hi, int m,
+                                 int n, int side, LOOM_OUT(float) s, LOOM_OUT(float) tv) {
+  float fi = 2.0 * asg_node_coord(theta_i, theta_lo, theta_hi, m);
+  float fj = 2.0 * asg_node_coord(h, -1.0, 1.0, n);
+  s = (side * n + fj + 0.5) / (2.0 * n);
+  tv = (fi + 0.5) / m;
+}
+
+/// Weight of the diffuse closure carrying the backward residual e_b (header comment).
+LOOM_FN color raywave_residual_diffuse_weight(color e_b, float open, float vis_v, color rho_b) {
+  return open * vis_v * rho_b * e_b;
+}
+
+/// Weight of the translucent closure carrying the forward residual e_f (header comment).
+LOOM_FN color raywave_residual_translucent_weight(color e_f, float open, color rho_f, float s) {
+  return open * (1.0 - s) * rho_f * e_f;
 }
 
 #endif

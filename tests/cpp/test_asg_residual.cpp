@@ -1,0 +1,116 @@
+// The energy residual of an ASG fit (baker/include/loom/asg_residual.h), against brute-force
+// quadrature over the sphere.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "loom/asg_fit.h"
+#include "loom/asg_residual.h"
+#include "loom/procedural_ply.h"
+#include "loom/shading.h"
+#include "loom/spec.h"
+
+namespace {
+
+/// The energy of f on each side of the ply (y > 0 backward) by the midpoint rule on an
+/// (S x 2S) grid uniform in z and phi (equal-area cells).
+template <class F>
+void sphere_sides(const F& f, int S, double& back, double& forward) {
+  back = forward = 0;
+  for (int i = 0; i < S; ++i)
+    for (int j = 0; j < 2 * S; ++j) {
+      const double z = -1 + (i + 0.5) * 2.0 / S, r = std::sqrt(1 - z * z),
+                   ph = (j + 0.5) * M_PI / S;
+      const loom::Vec3d w{r * std::cos(ph), r * std::sin(ph), z};
+      (w.y > 0 ? back : forward) += f(w) * (2.0 / S) * (M_PI / S);
+    }
+}
+
+double lobe_value(const loom::AsgLobe& q, const loom::Vec3d& w) {
+  return loom::shading::asg_eval(float(q.theta_z), float(q.phi_z), float(q.phi_xy), float(q.mu1),
+                                 float(q.mu2), float(q.c),
+                                 loom::shading::vec3(float(w.x), float(w.y), float(w.z)));
+}
+
+}  // namespace
+
+TEST(AsgResidual, BackwardFractionMatchesSphereQuadrature) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ang(-M_PI, M_PI), th(-1.4, 1.4), lmu(std::log(0.5),
+                                                                                std::log(300.0));
+  for (int n = 0; n < 40; ++n) {
+    const loom::AsgLobe q{th(rng), ang(rng), ang(rng), std::exp(lmu(rng)), std::exp(lmu(rng)), 1};
+    double b, f;
+    sphere_sides([&](const loom::Vec3d& w) { return lobe_value(q, w); }, 512, b, f);
+    EXPECT_NEAR(loom::asg_backward_fraction(q), b / (b + f), 0.005)
+        << "lobe " << n << ": theta_z " << q.theta_z << " phi_z " << q.phi_z << " mu " << q.mu1
+        << ", " << q.mu2;
+  }
+}
+
+TEST(AsgResidual, BackwardFractionLimits) {
+  // Narrow lobes well inside one side; a lobe centred in the plane y = 0 and symmetric about it.
+  EXPECT_NEAR(loom::asg_backward_fraction({0, M_PI / 2, 0, 4000, 4000, 1}), 1.0, 1e-9);
+  EXPECT_NEAR(loom::asg_backward_fraction({0, -M_PI / 2, 0.3, 4000, 900, 1}), 0.0, 1e-9);
+  EXPECT_NEAR(loom::asg_backward_fraction({0, 0, 0, 2.0, 50.0, 1}), 0.5, 0.01);
+  EXPECT_NEAR(loom::asg_backward_fraction({0, 0, 0, 1e6, 1e6, 1}), 0.5, 0.01);
+  // mu = 0 (a clamped cosine lobe) pointing backward: the fraction of a cosine lobe's energy
+  // (1/2 of it projected... all of the hemisphere y > 0).
+  EXPECT_NEAR(loom::asg_backward_fraction({0, M_PI / 2, 0, 0, 0, 1}), 1.0, 1e-9);
+}
+
+TEST(AsgResidual, LobesPlusResidualHoldTheSimulatedEnergy) {
+  // On every slice and absorption level: lobes (brute-force quadrature of the fitted mixture)
+  // plus residual give at least the simulated energy on each side, and exactly it where the
+  // lobes fall short.
+  loom::YarnSpec y;
+  auto p = loom::ply_params_from_yarn(y);
+  auto st = loom::ply_sim_settings(loom::Quality::Draft);
+  st.theta_i_count = 5, st.h_count = 5, st.rays_per_slice = 3000;
+  st.sigmas = {0.0, 5.0, 40.0};
+  const auto sim = loom::simulate_ply_scattering(p, y.ior, st);
+  auto fs = loom::asg_fit_settings(loom::Quality::Draft, false);
+  fs.lobes = 2;
+  fs.max_iterations = 15;
+  loom::AsgTable t = loom::asg_fit_high(sim, fs);
+  t.residual = loom::asg_fit_residual(sim, t, false);
+  const size_t K = st.sigmas.size(), bins = size_t(st.theta_o_count) * size_t(st.phi_o_count);
+  ASSERT_EQ(t.residual.size(), sim.slices.size() * K * 2);
+  double total_res = 0;
+  for (size_t s = 0; s < sim.slices.size(); ++s) {
+    const loom::PlySimSlice& sl = sim.slices[s];
+    for (size_t k = 0; k < K; ++k) {
+      double fit[2], data[2] = {0, 0};
+      sphere_sides([&](const loom::Vec3d& w) {
+        return loom::asg_table_eval(t, sl.theta_i, sl.h, st.sigmas[k], w);
+      }, 384, fit[0], fit[1]);
+      for (int a = 0; a < st.theta_o_count; ++a)
+        for (int b = 0; b < st.phi_o_count; ++b) {
+          const loom::Vec3d w = loom::ply_sim_bin_direction(st, a, b);
+          data[w.y > 0 ? 0 : 1] += sl.high[k * bins + size_t(a) * size_t(st.phi_o_count) + size_t(b)] *
+                                   loom::ply_sim_bin_solid_angle(st, a);
+        }
+      for (int side = 0; side < 2; ++side) {
+        const double r = t.residual[(s * K + k) * 2 + size_t(side)];
+        const double tol = 0.01 * data[side] + 1e-4;
+        ASSERT_GE(r, 0.0);
+        total_res += r;
+        EXPECT_GE(fit[side] + r, data[side] - tol)
+            << "slice " << s << " level " << k << " side " << side;
+        if (r > 0)
+          EXPECT_NEAR(fit[side] + r, data[side], tol)
+              << "slice " << s << " level " << k << " side " << side;
+      }
+    }
+  }
+  EXPECT_GT(total_res, 0.0) << "two lobes cannot hold a ply's scattering; the test needs a residual";
+  // The look-up at a slice returns the stored values; between slices it interpolates.
+  double b, f;
+  loom::asg_residual_at(t, sim.slices[7].theta_i, sim.slices[7].h, 5.0, b, f);
+  EXPECT_NEAR(b, t.residual[(7 * K + 1) * 2], 1e-12);
+  EXPECT_NEAR(f, t.residual[(7 * K + 1) * 2 + 1], 1e-12);
+  double b2, f2;
+  loom::asg_residual_at(t, sim.slices[7].theta_i, sim.slices[7].h, 22.5, b2, f2);
+  EXPECT_NEAR(b2, 0.5 * (t.residual[(7 * K + 1) * 2] + t.residual[(7 * K + 2) * 2]), 1e-12);
+}
