@@ -55,8 +55,7 @@ TEST(AsgResidual, BackwardFractionLimits) {
   EXPECT_NEAR(loom::asg_backward_fraction({0, -M_PI / 2, 0.3, 4000, 900, 1}), 0.0, 1e-9);
   EXPECT_NEAR(loom::asg_backward_fraction({0, 0, 0, 2.0, 50.0, 1}), 0.5, 0.01);
   EXPECT_NEAR(loom::asg_backward_fraction({0, 0, 0, 1e6, 1e6, 1}), 0.5, 0.01);
-  // mu = 0 (a clamped cosine lobe) pointing backward: the fraction of a cosine lobe's energy
-  // (1/2 of it projected... all of the hemisphere y > 0).
+  // mu = 0 (a clamped cosine lobe) pointing backward: all of it lies in the hemisphere y > 0.
   EXPECT_NEAR(loom::asg_backward_fraction({0, M_PI / 2, 0, 0, 0, 1}), 1.0, 1e-9);
 }
 
