@@ -117,6 +117,16 @@ def spec_tier(exe: str, spec: str) -> str | None:
     return canon.get("model", {}).get("tier")
 
 
+def spec_geometry(exe: str, spec: str) -> dict:
+    """``loom-bake check --geometry``: {"spec": the canonical spec, "repeat_um": [x, y],
+    "warp_yarns", "weft_yarns"}; raises LoomBakeError when the spec does not validate."""
+    out = run_loom_bake(exe, ["check", _spec_arg(spec), "--geometry"], timeout=20)
+    try:
+        return json.loads(out)
+    except ValueError as exc:
+        raise LoomBakeError(f"loom-bake check --geometry printed no JSON: {exc}") from exc
+
+
 def list_presets(exe: str) -> list[str]:
     """Names printed by ``loom-bake presets`` (one a line)."""
     out = run_loom_bake(exe, ["presets"], timeout=20)

@@ -14,6 +14,11 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
 * Warp and weft: OSL picks the yarn's files with an ``if``; nodes cannot choose an image, so each
   yarn's texels are read and the values are selected (yarn_info.r > 1.5: weft). Yarns that share
   their tables (manifest ``same_as``) share the look-ups.
+* Gap diffraction (``diffraction_sampling.h``): the OSL shader hashes the shading position with
+  ``noise("hash", P, w)``; nodes take the four random numbers from two White Noise Textures (4D,
+  Position, W = 0 and 1: the first's Color, the second's Value). The numbers differ (both are
+  uniform hashes of the sample's position), the distributions sampled do not. One Refraction
+  BSDF per lobe and colour channel.
 * Closures: each lobe has a Glossy BSDF (Beckmann, anisotropic) and a Refraction BSDF (Beckmann),
   and a Translucent BSDF, whose Color is the lobe's weight times 1 for the kind
   raywave_lobe_closure picked and 0 for the others (Cycles allocates no closure of zero weight);
@@ -50,7 +55,9 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
                       "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_CLOSED_FORM_MU",
                       "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_INTEGRAL_WIDTHS", "LOOM_ASG_MU_MAX",
-                      "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS")
+                      "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
+                      "LOOM_DIFFRACTION_ICDF_SIZE", "LOOM_DIFFRACTION_KERNEL_RAD",
+                      "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
@@ -58,7 +65,9 @@ TRANSCRIBED_FROM = {
     "include/loom/raywave_lobes.h": "f13059f7d48bcf84",
     "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
     "include/loom/asg.h": "837c6aaf61b2da26",
-    "loom_cloth_raywave.osl": "32994df4cd8d0ac7",
+    "include/loom/diffraction_table.h": "452b37e1478a3fd5",
+    "include/loom/diffraction_sampling.h": "a22555fa222b7c86",
+    "loom_cloth_raywave.osl": "5ed07738b0ff4340",
 }
 
 
@@ -316,6 +325,107 @@ def raywave_lobe_weight(is_refl, is_refr, integral, albedo, tint, open_, vis_v, 
     return w_refl, w_fwd
 
 
+# ======================================================================= diffraction_table.h,
+#                                                                         diffraction_sampling.h
+
+
+def diffraction_obliquity(xi_i, xi_o):
+    """diffraction_table.h: diffraction_obliquity(xi_i, xi_o) = (|xi_i.z| + |xi_o.z|)^2 / 4."""
+    a = fabs(xi_i.z) + fabs(xi_o.z)
+    return 0.25 * a * a
+
+
+def diffraction_table_s(t, K):
+    """diffraction_table.h: diffraction_table_s(t) = S_MAX t^2."""
+    return K["LOOM_DIFFRACTION_S_MAX"] * t * t
+
+
+def diffraction_gap_offset(coord, yarns, gap_fraction):
+    """diffraction_sampling.h: diffraction_gap_offset(coord, yarns, gap_fraction).
+
+        x = coord yarns;  c = x - floor(x + 0.5);  min(|c| 2 / max(gap_fraction, 1e-6), 1)"""
+    x = coord * float(yarns)
+    c = x - floor(x + 0.5)
+    return min_(fabs(c) * (2.0 / max(gap_fraction, 1e-6)), 1.0)
+
+
+def diffraction_tile_pick(o, n, r):
+    """diffraction_sampling.h: diffraction_tile_pick(o, n, r).
+
+        n < 2: 0;  f = clamp(o, 0, 1) (n - 1) (NaN: 0);  i = floor(f);  i >= n - 1: n - 1
+        r < f - i: i + 1;  else i
+    (Blender's Clamp node already gives 0 for NaN.)"""
+    if n < 2:
+        return 0.0
+    f = clamp(o, 0.0, 1.0) * float(n - 1)
+    i = floor(f)
+    return select(i > n - 1.5, float(n - 1), select(r < f - i, i + 1.0, i))
+
+
+def diffraction_stratum(r, k, step):
+    """diffraction_sampling.h: diffraction_stratum(r, k, step) = x - floor(x), x = r + k step."""
+    x = r + k * step
+    return x - floor(x)
+
+
+def diffraction_split(r):
+    """diffraction_sampling.h: diffraction_split(r, sgn) -> (u, sgn).
+
+        sgn = r < 0.5 ? -1 : 1;  u = clamp(|2 r - 1|, 0, 1)"""
+    return clamp(fabs(2.0 * r - 1.0), 0.0, 1.0), select(r < 0.5, -1.0, 1.0)
+
+
+def diffraction_sample_uv(u, row, tx, ty, tiles_x, tiles_y, size, K):
+    """diffraction_sampling.h: diffraction_sample_uv(u, row, tx, ty, tiles_x, tiles_y, size) ->
+    (s, tv).
+
+        k = clamp(u, 0, 1) (ICDF - 1) + 0.5;  s = (tx ICDF + k) / (tiles_x ICDF)
+        tv = (ty (size + 1) + row + 0.5) / (tiles_y (size + 1))"""
+    icdf = K["LOOM_DIFFRACTION_ICDF_SIZE"]
+    k = clamp(u, 0.0, 1.0) * (icdf - 1.0) + 0.5
+    s = (tx * icdf + k) * (1.0 / (tiles_x * icdf))
+    tv = (ty * (size + 1.0) + row + 0.5) * (1.0 / (tiles_y * (size + 1.0)))
+    return s, tv
+
+
+def diffraction_cell_row(t_y, size):
+    """diffraction_sampling.h: diffraction_cell_row(t_y, size) =
+    1 + max(0, min(floor(clamp(t_y, 0, 1) (size - 1)), size - 2)) (NaN: row 1, as the Clamp
+    node gives)."""
+    j = floor(clamp(t_y, 0.0, 1.0) * (size - 1.0))
+    return 1.0 + max_(0.0, min_(j, size - 2.0))
+
+
+def diffraction_light_direction(V_, s_x, s_y):
+    """diffraction_sampling.h: diffraction_light_direction(V, s_x, s_y, L) -> (L, ok).
+
+        lx = s_x - V.x;  ly = s_y - V.y;  r2 = lx^2 + ly^2
+        ok = r2 < 1;  L = ok ? (lx, ly, -sqrt(1 - r2)) : (0, 0, -1)"""
+    lx = s_x - V_.x
+    ly = s_y - V_.y
+    r2 = lx * lx + ly * ly
+    ok = r2 < 1.0
+    L = select(ok, vec(lx, ly, -sqrt(max_(1.0 - r2, 0.0))), (0.0, 0.0, -1.0))
+    return L, ok
+
+
+def diffraction_lobe_weight(V_, L, p_out, albedo, K):
+    """diffraction_sampling.h: diffraction_lobe_weight(V, L, p_out, albedo) =
+    p_out obliquity(L, V) / max(|L.z|, MIN_COS) / (max(albedo, MIN_ALBEDO) SAMPLES)."""
+    w = p_out * diffraction_obliquity(L, V_) / max_(fabs(L.z), K["LOOM_DIFFRACTION_MIN_COS"])
+    return w / (max_(albedo, K["LOOM_RAYWAVE_MIN_ALBEDO"]) * K["LOOM_DIFFRACTION_SAMPLES"])
+
+
+def diffraction_lobe_closure(V_, L, K):
+    """diffraction_sampling.h: diffraction_lobe_closure(V, L, N, alpha) -> (N, alpha, ok).
+
+        mu = 0.5 / KERNEL_RAD^2;  ok = asg_lobe_refraction_frame(V, L, N, mag)
+        alpha = asg_refraction_alpha(mu, mu, mag, N, L)"""
+    mu = 0.5 / (K["LOOM_DIFFRACTION_KERNEL_RAD"] ** 2)
+    N, mag, ok = asg_lobe_refraction_frame(V_, L, K)
+    return N, asg_refraction_alpha(mu, mu, mag, N, L, K), ok
+
+
 # ======================================================================= double_layer_factors.h
 
 
@@ -391,6 +501,21 @@ def _grid(manifest: dict) -> dict:
             "blend": float(dl.get("blend", 0.5))}
 
 
+def _diffraction(manifest: dict) -> dict | None:
+    """The gap diffraction the shaders sample (diffraction_sampling.h), or None for delta
+    transmission (no gap table: the non-wave variant, or yarns that touch). Raises KeyError when
+    a gap table comes without its sampling table (an older loom-bake)."""
+    dif = manifest["raywave"].get("diffraction", {})
+    files = dif.get("files", {})
+    if dif.get("mode") != "tables" or "gap" not in files:
+        return None
+    n = int(dif["gap_offsets"])
+    return {"file": files["gap_sampling"], "tiles_x": n, "tiles_y": n,
+            "size": int(dif["tile_size"]), "gap_fraction": [float(g) for g in dif["gap_fraction"]],
+            "weft_yarns": int(manifest["repeat"]["weft_yarns"]),
+            "warp_yarns": int(manifest["repeat"]["warp_yarns"])}
+
+
 def atlas_problem(manifest: dict) -> str | None:
     """None if node mode (and the OSL shader) can read this ray-wave atlas, else why not."""
     try:
@@ -406,6 +531,9 @@ def atlas_problem(manifest: dict) -> str | None:
         for y in ("warp", "weft"):
             files = rw["yarns"][y]["files"]
             needed |= {files["high"], files["refl"], files["tint"], files["residual"]}
+        dif = _diffraction(manifest)
+        if dif:
+            needed.add(dif["file"])
     except (KeyError, TypeError) as exc:
         return (f"not a ray-wave atlas with render tables (manifest lacks {exc}): re-bake it "
                 f"with this version of loom-bake")
@@ -433,6 +561,13 @@ def atlas_problem(manifest: dict) -> str | None:
             got = list(textures[name].get("size", []))
             if got != size:
                 return f"{name} is {got}, the grids say {size}: re-bake the atlas"
+    dif = _diffraction(manifest)
+    if dif:
+        want = [int(K["LOOM_DIFFRACTION_ICDF_SIZE"]) * dif["tiles_x"],
+                (dif["size"] + 1) * dif["tiles_y"]]
+        got = list(textures[dif["file"]].get("size", []))
+        if got != want:
+            return f"{dif['file']} is {got}, the diffraction tables say {want}: re-bake the atlas"
     return None
 
 
@@ -455,6 +590,13 @@ def osl_parameters(manifest: dict) -> tuple[dict, dict]:
               "theta_count": g["m"], "h_count": g["n"], "theta_min": g["theta_min"],
               "theta_max": g["theta_max"], "layer_theta_count": g["layer_theta_count"],
               "layer_phi_count": g["layer_phi_count"], "double_layer_blend": g["blend"]}
+    dif = _diffraction(manifest)
+    if dif:  # (without: the shader's defaults, diffraction_tiles_x = 0, give delta transmission)
+        tex["diffraction_gap_sampling"] = dif["file"]
+        values.update({"diffraction_tiles_x": dif["tiles_x"], "diffraction_tiles_y": dif["tiles_y"],
+                       "diffraction_size": dif["size"], "weft_yarns": dif["weft_yarns"],
+                       "warp_yarns": dif["warp_yarns"], "gap_fraction_x": dif["gap_fraction"][0],
+                       "gap_fraction_y": dif["gap_fraction"][1]})
     return tex, values
 
 
@@ -727,22 +869,82 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, rho_f, g["blend"]),
                            "residual translucent weight")
 
+    # ---------------------------------------------------------------- gap diffraction
+    gap = 1.0 - open_
+    gap_delta = vec(gap, gap, gap)
+    gap_lobes = []
+    dif = _diffraction(manifest)
+    if dif:
+        with b.block("Gap diffraction (diffraction_sampling.h; loom_cloth_raywave.osl)"):
+            # Four independent uniform numbers. (Not one node's Value and Color: Cycles' white
+            # noise computes Color.r with the very hash of Value, kernel/svm/white_noise.h.)
+            geo_p = b.vector_socket(geo.outputs["Position"])
+            rnd_nodes = []
+            for w in (0.0, 1.0):
+                node = b.new("ShaderNodeTexWhiteNoise", noise_dimensions="4D",
+                             label=f'noise("hash", P, {w:g} ...)')
+                b.link(geo_p, node.inputs["Vector"])
+                b.link(w, node.inputs["W"])
+                rnd_nodes.append(node)
+            rnd = b.vector_socket(rnd_nodes[0].outputs["Color"])
+            r3 = b.float_socket(rnd_nodes[1].outputs["Value"])
+            nx, ny, size = dif["tiles_x"], dif["tiles_y"], dif["size"]
+            ox = diffraction_gap_offset(uv.x - floor(uv.x), dif["weft_yarns"],
+                                        dif["gap_fraction"][0])
+            oy = diffraction_gap_offset(uv.y - floor(uv.y), dif["warp_yarns"],
+                                        dif["gap_fraction"][1])
+            tx = b.label(diffraction_tile_pick(ox, nx, rnd.x), "tile x")
+            ty = b.label(diffraction_tile_pick(oy, ny, rnd.y), "tile y")
+            gs, gt = diffraction_sample_uv(0.5, size, tx, ty, nx, ny, size, K)
+            p_out, _ = table(dif["file"], gs, gt, what="p_out")
+            n_samples = int(K["LOOM_DIFFRACTION_SAMPLES"])
+            for k in range(n_samples):
+                u_y, sgn_y = diffraction_split(diffraction_stratum(rnd.z, k, 1.0 / n_samples))
+                u_x, sgn_x = diffraction_split(diffraction_stratum(r3, k, 0.6180339887))
+                gs, gt = diffraction_sample_uv(u_y, 0, tx, ty, nx, ny, size, K)
+                t_y, _ = table(dif["file"], gs, gt, what=f"t_y (marginal), lobe {k}")
+                for c in range(3):
+                    row = diffraction_cell_row(t_y[c], size)
+                    gs, gt = diffraction_sample_uv(u_x, row, tx, ty, nx, ny, size, K)
+                    t_x, _ = table(dif["file"], gs, gt, what=f"t_x, lobe {k} channel {c}")
+                    L, ok1 = diffraction_light_direction(
+                        V_, sgn_x * diffraction_table_s(t_x[c], K),
+                        sgn_y * diffraction_table_s(t_y[c], K))
+                    Nd, alpha, ok2 = diffraction_lobe_closure(V_, L, K)
+                    ok = ok1 * ok2
+                    ls, lt = microfacet_albedo_uv(dot(Nd, V_), alpha, K)
+                    E, _ = table(rw["shading"]["microfacet_albedo"], ls, lt,
+                                 what=f"lobe {k} channel {c}")
+                    w = gap * diffraction_lobe_weight(V_, L, p_out[c], E.y, K) * ok
+                    unit = tuple(1.0 if i == c else 0.0 for i in range(3))
+                    rf = b.new("ShaderNodeBsdfRefraction", distribution="BECKMANN",
+                               label=f'microfacet("beckmann", N, N, a, a, eta, 1), lobe {k} '
+                                     f'channel {c}')
+                    b.link(vec(*(w if i == c else 0.0 for i in range(3))), rf.inputs["Color"])
+                    b.link(sqrt(alpha), rf.inputs["Roughness"])
+                    b.link(select(back, 1.0 / K["LOOM_RAYWAVE_ETA"], K["LOOM_RAYWAVE_ETA"]),
+                           rf.inputs["IOR"])
+                    b.link(normalize(T * Nd.x + B * Nd.y + Nw * Nd.z), rf.inputs["Normal"])
+                    gap_lobes.append(rf.outputs["BSDF"])
+                    gap_delta = gap_delta - vec(*unit) * (gap * p_out[c] * ok
+                                                          * (1.0 / n_samples))
+
     # ---------------------------------------------------------------- closures
     with b.block("Closures (loom_cloth_raywave.osl)"):
         tr = b.new("ShaderNodeBsdfTranslucent",
                    label="translucent(N) * (open s F_total + residual translucent weight)")
         b.link(f_total * (open_ * g["blend"]) + w_transl, tr.inputs["Color"])
         b.link(Nw, tr.inputs["Normal"])
-        dif = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * residual diffuse weight")
-        dif.inputs["Roughness"].default_value = 0.0
-        b.link(w_diffuse, dif.inputs["Color"])
-        b.link(Nw, dif.inputs["Normal"])
-        gap = 1.0 - open_
-        transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * (1 - open)")
-        b.link(vec(gap, gap, gap), transp.inputs["Color"])
+        dif_node = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * residual diffuse weight")
+        dif_node.inputs["Roughness"].default_value = 0.0
+        b.link(w_diffuse, dif_node.inputs["Color"])
+        b.link(Nw, dif_node.inputs["Normal"])
+        transp = b.new("ShaderNodeBsdfTransparent",
+                       label="transparent() * (1 - open), less the sampled diffraction")
+        b.link(gap_delta, transp.inputs["Color"])
         total = None
-        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"], dif.outputs["BSDF"],
-                    *(n.outputs["BSDF"] for n in lobe_outputs)):
+        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"], dif_node.outputs["BSDF"],
+                    *gap_lobes, *(n.outputs["BSDF"] for n in lobe_outputs)):
             if total is None:
                 total = out
                 continue

@@ -7,6 +7,7 @@ bar and the material panel; Esc or the panel's Cancel button kills the process. 
 a window (scripts, ``blender -b``), ``execute`` runs the same job to completion instead.
 """
 
+import json
 import os
 
 import bpy
@@ -14,6 +15,39 @@ from bpy.props import StringProperty
 from bpy.types import Operator
 
 from . import bakery, colour_config, material, node_mode, preferences, scene_needs
+
+
+def _spec_for_scene(context, mat, exe: str, spec: str, cache: str) -> str:
+    """Model "By Scene": the spec with only what the scene needs of the cloth (scene_needs.py),
+    written into the cache; the findings go to the material's Scene Needs report. Without a
+    camera or UVs to judge from, the spec as it is."""
+    s = mat.loom
+    obj = context.object
+    geo = bakery.spec_geometry(exe, spec)
+    canon = geo["spec"]
+    yarn = canon["warp"]
+    if context.scene.camera is None or obj is None or material.uv_meters_per_unit(obj) is None:
+        s.needs_report = ("Needs: as specified\nno camera, or no UV map on the object, to judge "
+                          "the scene from: the spec's tier and components")
+        return spec
+    shape = {"repeat": {"size_um": geo["repeat_um"]}}
+    repeats = (material.physical_repeats(obj, shape, s.size_factor)
+               if s.scale_mode == "PHYSICAL" else s.repeats)
+    needs = scene_needs.scene_needs(obj, context.scene, float(yarn["yarn_diameter_um"]),
+                                    float(yarn["ply_diameter_um"]), int(yarn["plies"]),
+                                    float(geo["repeat_um"][0]), repeats)
+    s.needs_report = "\n".join([f"Needs: {needs.tier} tier"] + needs.reasons)
+    derived = scene_needs.spec_for_needs(canon, needs)
+    text = json.dumps(derived, sort_keys=True, indent=1)
+    name = bakery.cache_entry(text, s.quality)[0]
+    folder = os.path.join(cache, "specs")
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, name + ".json")
+    tmp = path + f".tmp{os.getpid()}"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+    os.replace(tmp, path)
+    return path
 
 
 def _request(context, mat) -> bakery.BakeRequest:
@@ -34,6 +68,8 @@ def _request(context, mat) -> bakery.BakeRequest:
     cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
     cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))
     os.makedirs(cache, exist_ok=True)
+    if s.model == "SCENE" and exe and tier:
+        spec = _spec_for_scene(context, mat, exe, spec, cache)
     return bakery.BakeRequest(spec=spec, quality=s.quality,
                               loom_bake=(prefs.loom_bake_path or None) if prefs else None,
                               cache_dir=cache, ocio_config=colour_config.staged(cache),

@@ -61,6 +61,15 @@ class LoomMaterialSettings(PropertyGroup):
                          description="Built-in fabric (listed by loom-bake presets)")
     spec_path: StringProperty(name="Spec", subtype="FILE_PATH",
                               description="Fabric spec JSON file")
+    model: EnumProperty(
+        name="Model",
+        items=[("SCENE", "By Scene",
+                "Bake what this scene needs of the cloth: the tier from the camera (yarn and ply "
+                "widths in pixels), transmission, double layer and diffraction only when "
+                "something lights it from behind, multi-ply only for plied yarns"),
+               ("SPEC", "As Specified", "The tier and components the spec or preset gives")],
+        default="SCENE",
+    )
     quality: EnumProperty(
         name="Quality",
         items=[(q, q.capitalize(), f"loom-bake --quality {q}") for q in bakery.QUALITIES],

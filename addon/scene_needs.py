@@ -11,7 +11,8 @@ scene requires").
   need no multi-ply terms.
 
 ``scene_needs(obj, scene, ...)`` returns the choice with its reasons, in words, for the UI and
-for scripts (``loom.api.scene_needs``). Sizes in the spec are micrometres; one weave repeat
+for scripts (``loom.api.scene_needs``); ``spec_for_needs`` turns a canonical spec into the one
+that bakes only that (Bake & Assign with Model "By Scene"). Sizes in the spec are micrometres; one weave repeat
 spans ``1 / repeats_per_uv`` UV units, and the object's world size per UV unit comes from its
 mesh (material.uv_meters_per_unit). The cloth is taken as its mean plane (area-weighted normal
 and centre) for the camera distance and for which side a light is on.
@@ -108,6 +109,25 @@ def _world_strength(world) -> float:
                 best = max(best, lum * (1.0 if strength.is_linked else strength.default_value))
         return best
     return _luminance(world.color)
+
+
+def spec_for_needs(canonical: dict, needs: SceneNeeds) -> dict:
+    """The canonical spec ``canonical`` (``loom-bake check``) with the tier and the components
+    ``needs`` asks for: model.tier; components.transmission (both tiers; the ray-wave tier's
+    forward lobes are part of its fitted ply scattering and stay), components.double_layer,
+    components.multi_ply and wave.diffraction (ray-wave). What the spec had switched off stays
+    off: a need only removes work."""
+    import copy
+
+    spec = copy.deepcopy(canonical)
+    spec.setdefault("model", {})["tier"] = needs.tier
+    comp = spec.setdefault("components", {})
+    wave = spec.setdefault("wave", {})
+    comp["transmission"] = bool(comp.get("transmission", True)) and needs.transmission
+    comp["double_layer"] = bool(comp.get("double_layer", True)) and needs.double_layer
+    comp["multi_ply"] = bool(comp.get("multi_ply", True)) and needs.multi_ply
+    wave["diffraction"] = bool(wave.get("diffraction", True)) and needs.diffraction
+    return spec
 
 
 def scene_needs(obj, scene, yarn_um: float, ply_um: float, plies: int, repeat_um: float,

@@ -44,6 +44,7 @@ class MATERIAL_PT_loom(Panel):
             col.prop(s, "preset")
         else:
             col.prop(s, "spec_path")
+        col.prop(s, "model")
         col.prop(s, "quality")
         col.prop(s, "mode")
         col.prop(s, "scale_mode")

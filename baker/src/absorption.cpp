@@ -82,28 +82,6 @@ AbsorptionFit fit_absorption(const AbsorptionCurve& curve) {
   return f;
 }
 
-double curve_energy(const AbsorptionCurve& c, double sigma) {
-  const auto& s = c.sigma_per_mm;
-  if (s.empty()) return 0;
-  if (!(sigma > s.front())) return c.energy.front();
-  if (sigma >= s.back()) return c.energy.back();
-  size_t k = size_t(std::upper_bound(s.begin(), s.end(), sigma) - s.begin());
-  const double t = (sigma - s[k - 1]) / (s[k] - s[k - 1]);
-  const double e0 = std::max(c.energy[k - 1], 1e-300), e1 = std::max(c.energy[k], 1e-300);
-  return std::exp((1 - t) * std::log(e0) + t * std::log(e1));
-}
-
-double curve_sigma(const AbsorptionCurve& c, double e, double sigma_max) {
-  if (c.energy.empty() || !(e < c.energy.front())) return 0.0;  // also NaN: no absorption
-  if (!(curve_energy(c, sigma_max) < e)) return sigma_max;
-  double lo = 0, hi = sigma_max;
-  for (int it = 0; it < 100 && hi - lo > 1e-9 * sigma_max; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (curve_energy(c, mid) > e ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
 YarnAbsorption yarn_absorption(const std::array<double, 3>& rgb, const SpectralUpsampler& up,
                                const AbsorptionFit& fit, const AbsorptionCurve& curve,
                                double sigma_max) {

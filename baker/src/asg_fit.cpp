@@ -486,19 +486,6 @@ AsgFitSettings asg_fit_settings(Quality q, bool refl) {
 AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, false); }
 AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, true); }
 
-void asg_sigma_interval(const std::vector<double>& sig, double sigma, int& k, double& t) {
-  k = 0, t = 0;
-  const int K = int(sig.size());
-  const double s = std::isfinite(sigma) ? std::max(sigma, 0.0) : 0.0;
-  if (K < 2) return;
-  if (s >= sig.back()) {
-    k = K - 2, t = 1;
-    return;
-  }
-  while (k + 2 < K && s > sig[size_t(k + 1)]) ++k;
-  t = (s - sig[size_t(k)]) / (sig[size_t(k + 1)] - sig[size_t(k)]);
-}
-
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma) {
   const int L = t.lobes;
   auto locate = [](const std::vector<double>& grid, double x, int& block, double& frac) {
@@ -517,7 +504,7 @@ std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h
   const int K = int(t.sigmas.size());
   int k = 0;
   double tt = 0;
-  asg_sigma_interval(t.sigmas, sigma, k, tt);
+  sigma_interval(t.sigmas, sigma, t.absorption, k, tt);
   const int Nb = (int(t.h.size()) - 1) / 2;
   const double* sc = &t.scale[size_t((bm * Nb + bn) * K * L)];
   auto w = corner_weights(r, s);

@@ -102,7 +102,7 @@ void asg_residual_at(const AsgTable& t, double theta_i, double h, double sigma, 
   coord(h, t.h, n0, fn);
   int k;
   double ts;
-  asg_sigma_interval(t.sigmas, sigma, k, ts);
+  sigma_interval(t.sigmas, sigma, t.absorption, k, ts);
   const size_t k1 = std::min(size_t(k) + 1, K - 1);
   double out[2] = {0, 0};
   for (int side = 0; side < 2; ++side)

@@ -532,12 +532,12 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         for (auto& [name, t] : sm["textures"].items())
           if (colour_independent_texture(name)) copy_texture(name);
         for (int i = 0; i < 2; ++i) {
-          const json& y = raywave["yarns"][i == 0 ? "warp" : "weft"];
-          AbsorptionCurve c;
-          c.sigma_per_mm = y["absorption"]["curve"]["sigma_per_mm"].get<std::vector<double>>();
-          c.energy = y["absorption"]["curve"]["energy"].get<std::vector<double>>();
-          c.rays = y["absorption"]["curve"]["rays"].get<uint64_t>();
-          curves[i] = c;
+          const char* yarn = i == 0 ? "warp" : "weft";
+          const json& y = raywave["yarns"][yarn];
+          curves[i] = absorption_curve_from_manifest(y, yarn);
+          if (curves[i]->empty())
+            throw std::runtime_error(fmt::format("reusing {}: raywave.yarns.{}.absorption.curve "
+                                                 "is missing", source->first.string(), yarn));
           sigma_max[i] = y["high"]["sigma_per_mm"].back().get<double>();
         }
         res.reused_simulation = source->first;
@@ -552,7 +552,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           }
           const YarnSpec& y = std::string(yarn) == "warp" ? spec.warp : spec.weft;
           PlyTables& pt = yarn_tables[std::string(yarn) == "warp" ? 0 : 1].emplace(
-              bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn));
+              bake_ply_tables(y, spec.quality, opt.progress, std::string("plysim ") + yarn,
+                              spec.components.multi_ply));
           json entry = ply_tables_manifest(pt, yarn);
           add_table(asg_nodes_image(pt.high), entry["files"]["high"],
                     {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
@@ -581,10 +582,14 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         const PlySimResult& weft_sim = yarn_tables[1] ? yarn_tables[1]->raw : warp_sim;
         const Layer warp_layer{&warp_sim, {1, 0, 0}}, weft_layer{&weft_sim, {0, 1, 0}};
         const DoubleLayerSettings dls = double_layer_settings(spec.quality);
+        // components.double_layer off: one layer, B_total = B_t and F_total = F_t (factors 1)
+        // and no diffuse part (s = 0), without simulating the second layer.
+        const bool two_layers = spec.components.double_layer;
         json dl = {{"theta_count", dls.theta_count},
                    {"phi_count", dls.phi_count},
                    {"sigma_per_mm", warp_sim.settings.sigmas},
-                   {"blend", spec.double_layer_blend},
+                   {"blend", two_layers ? spec.double_layer_blend : 0.0},
+                   {"mode", two_layers ? "tables" : "off"},
                    {"files", {{"front", "double_layer_front"}, {"back", "double_layer_back"}}},
                    {"layout",
                     "B_t, F_t, B_total, F_total (Eq. S.20) per direction xi towards the light: "
@@ -593,8 +598,16 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                     "back table takes xi mirrored to +z"}};
         if (opt.progress) opt.progress("double layer", 0.0);
         for (int side = 0; side < 2; ++side) {
-          DoubleLayerTable t = side == 0 ? double_layer_table(warp_layer, weft_layer, dls)
-                                         : double_layer_table(weft_layer, warp_layer, dls);
+          DoubleLayerTable t;
+          if (two_layers) {
+            t = side == 0 ? double_layer_table(warp_layer, weft_layer, dls)
+                          : double_layer_table(weft_layer, warp_layer, dls);
+          } else {
+            t.settings = dls;
+            t.sigmas = warp_sim.settings.sigmas;
+            t.values.assign(t.sigmas.size() * size_t(dls.theta_count * dls.phi_count),
+                            DoubleLayerFactors{1, 1, 1, 1, 1, 1});
+          }
           const int K = int(t.values.size()) / (dls.theta_count * dls.phi_count);
           Image img(dls.phi_count, dls.theta_count * K, 4);
           for (int row = 0; row < dls.theta_count * K; ++row)
@@ -645,12 +658,24 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                     {"r", "g", "b"}, "ply-edge aperture diffraction (section 4.3; layout: manifest "
                     "raywave.diffraction.layout)");
           if (spec.components.gaps && gap[0] > 0 && gap[1] > 0) {
-            add_table(to_image(diffraction_gap_table(gap[0], gap[1], w0, srgb, ds)),
-                      "diffraction_gap", {"r", "g", "b"},
+            const DiffractionTable gap_table = diffraction_gap_table(gap[0], gap[1], w0, srgb, ds);
+            add_table(to_image(gap_table), "diffraction_gap", {"r", "g", "b"},
                       "gap aperture diffraction (section 4.1-4.2; layout: manifest "
                       "raywave.diffraction.layout)");
             dif["files"]["gap"] = "diffraction_gap";
             dif["gap_offsets"] = ds.gap_offsets;
+            // What the shaders sample at render time (osl/include/loom/diffraction_sampling.h).
+            const double spot = diffraction_spot_radius(w0);
+            const DiffractionSampling samp = diffraction_sampling_table(gap_table, spot);
+            Image simg(samp.width, samp.height, 3);
+            std::copy(samp.rgb.begin(), samp.rgb.end(), simg.data.begin());
+            add_table(simg, "diffraction_gap_sampling", {"r", "g", "b"},
+                      "inverse CDFs of the gap diffraction outside the central spot, and the "
+                      "power there (layout: osl/include/loom/diffraction_sampling.h)");
+            dif["files"]["gap_sampling"] = "diffraction_gap_sampling";
+            dif["spot_s"] = spot;
+            dif["gap_p_out"] = samp.p_out;  // per tile (row-major from offset (0, 0)), RGB
+            dif["gap_fraction"] = {gap[0] * spec.weft_per_cm * 1e-4, gap[1] * spec.warp_per_cm * 1e-4};
           } else {
             dif["gap_absent"] = spec.components.gaps ? "the yarns touch: no open gaps"
                                                      : "components.gaps is off";
@@ -795,13 +820,16 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         const json& dl = raywave["double_layer"];
         json shading = {{"factors", json::object()},
                         {"microfacet_albedo", "microfacet_albedo"},
-                        {"layer_sigma_rgb_per_mm", sig_layers}};
+                        {"layer_sigma_rgb_per_mm", sig_layers},
+                        // Eq. S.10's weight between absorption levels (absorption_curve.h).
+                        {"sigma_interpolation", kSigmaInterpolation}};
         for (const char* side : {"front", "back"}) {
           DoubleLayerGrid g;
           g.table = read_table(dl["files"][side].get<std::string>());
           g.theta_count = dl["theta_count"];
           g.phi_count = dl["phi_count"];
           g.sigmas = dl["sigma_per_mm"].get<std::vector<double>>();
+          g.absorption = layer_absorption_curve(raywave);
           const std::string name = std::string("layer_factors_") + side;
           add_table(layer_factors_image(g, sig_layers), name, {"r", "g", "b"},
                     "double-layer factors B_total/B_t, F_total/F_t, F_total (Eq. S.21, S.22) at "

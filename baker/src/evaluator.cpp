@@ -62,13 +62,18 @@ SurfacePoint sample_surface(const Atlas& a, float u, float v) {
   for (int k = 0; k < 8; ++k) bilinear(a.map(kMaps[k]), u, v, vals[k]);
   SurfacePoint p = from_values(vals[0], vals[1], vals[2], vals[3], vals[4], vals[5], vals[6],
                                vals[7]);
+  p.u = u, p.v = v;
   return p;
 }
 
 SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
   const float* v[8];
   for (int k = 0; k < 8; ++k) v[k] = a.map(kMaps[k]).px(ix, iy);
-  return from_values(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]);
+  SurfacePoint p = from_values(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]);
+  const Image& ref = a.map(kMaps[0]);
+  p.u = (ix + 0.5f) / float(ref.width), p.v = (iy + 0.5f) / float(ref.height);
+  p.du = 1.0f / float(ref.width), p.dv = 1.0f / float(ref.height);
+  return p;
 }
 
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,

@@ -14,14 +14,14 @@ namespace loom {
 using nlohmann::json;
 
 PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progress,
-                          const std::string& stage) {
+                          const std::string& stage, bool multi_ply) {
   PlyTables out;
   const PlyParams p = ply_params_from_yarn(y);
   out.sim = ply_sim_settings(q);
   if (progress) progress(stage, 0.0);
   auto t0 = std::chrono::steady_clock::now();
   PlySimResult sim = simulate_ply_scattering(p, y.ior, out.sim);
-  if (y.plies > 1) {  // Eq. S.13-S.19; single-ply yarns skip it
+  if (y.plies > 1 && multi_ply) {  // Eq. S.13-S.19; single-ply yarns skip it
     out.multi = multi_ply_geometry(y, sim);
     sim = multi_ply_scattering(sim, *out.multi);
   }
@@ -144,6 +144,36 @@ json ply_tables_manifest(const PlyTables& t, const std::string& yarn) {
                                 : json(false)}};
 }
 
+AbsorptionCurve absorption_curve_from_manifest(const json& entry, const std::string& yarn) {
+  AbsorptionCurve c;
+  if (!entry.is_object() || !entry.contains("absorption")) return c;
+  const std::string where = "raywave.yarns." + yarn + ".absorption.curve";
+  const json& j = entry["absorption"].value("curve", json());
+  if (!j.is_object() || !j.contains("sigma_per_mm") || !j.contains("energy") ||
+      !j["sigma_per_mm"].is_array() || !j["energy"].is_array() ||
+      j["sigma_per_mm"].size() != j["energy"].size() || j["energy"].size() < 2)
+    throw std::runtime_error(where + ": expected arrays sigma_per_mm and energy of one length >= 2");
+  for (size_t k = 0; k < j["energy"].size(); ++k) {
+    const json &s = j["sigma_per_mm"][k], &e = j["energy"][k];
+    if (!s.is_number() || !e.is_number() || !std::isfinite(s.get<double>()) ||
+        !std::isfinite(e.get<double>()) || s.get<double>() < 0 || e.get<double>() < 0 ||
+        e.get<double>() > 1 + 1e-6)
+      throw std::runtime_error(where + ": expected sigma >= 0 and energy in [0, 1], finite");
+    if (k > 0 && !(s.get<double>() > c.sigma_per_mm.back()))
+      throw std::runtime_error(where + ".sigma_per_mm: must increase");
+    c.sigma_per_mm.push_back(s.get<double>());
+    c.energy.push_back(e.get<double>());
+  }
+  c.rays = j.value("rays", uint64_t(0));
+  return c;
+}
+
+AbsorptionCurve layer_absorption_curve(const json& raywave) {
+  const json& y = raywave.value("yarns", json());
+  return mean_curve(absorption_curve_from_manifest(y.value("warp", json()), "warp"),
+                    absorption_curve_from_manifest(y.value("weft", json()), "weft"));
+}
+
 AsgTable asg_table_from_images(const json& entry, const std::string& which, const Image& nodes,
                                const Image* scale, const Image* residual) {
   if (!entry.is_object() || !entry.contains(which) || !entry[which].is_object())
@@ -170,6 +200,7 @@ AsgTable asg_table_from_images(const json& entry, const std::string& which, cons
     if (!(t.sigmas[k] > t.sigmas[k - 1]))
       throw std::runtime_error(which + ".sigma_per_mm: must increase");
   t.nrmse = j.value("nrmse", 0.0);
+  t.absorption = absorption_curve_from_manifest(entry, entry.value("yarn", std::string("?")));
   const int rows = t.node_rows(), cols = t.node_cols(), L = t.lobes;
   if (nodes.width != cols * L * 2 || nodes.height != rows || nodes.channels != 4)
     throw std::runtime_error(fmt::format("{} nodes: image is {}x{}x{}, the grids say {}x{}x4",

@@ -80,7 +80,7 @@ Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rg
         for (int c = 0; c < 3; ++c) {
           int k;
           double t;
-          asg_sigma_interval(high.sigmas, sigma_rgb[size_t(c)], k, t);
+          sigma_interval(high.sigmas, sigma_rgb[size_t(c)], high.absorption, k, t);
           const double* sc = &high.scale[size_t((bm * Nb + bn) * K * L)];
           double s = 1;
           if (K > 1) s = (1 - t) * sc[k * L + l] + t * sc[(k + 1) * L + l];  // S.11
@@ -105,7 +105,7 @@ DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const vec3& xi, dou
   const int pa = wrap(p0), pb = wrap(p0 + 1);
   int k;
   double st;
-  asg_sigma_interval(g.sigmas, sigma, k, st);
+  sigma_interval(g.sigmas, sigma, g.absorption, k, st);
   const int K = int(g.sigmas.size());
   double v[4] = {0, 0, 0, 0};
   for (int kk = 0; kk < (K > 1 ? 2 : 1); ++kk) {
@@ -198,6 +198,10 @@ RaywaveData load_raywave(const Atlas& a) {
   if (!rw.contains("shading") || !rw["shading"].is_object())
     throw std::runtime_error("raywave.shading: missing (an atlas from before ray-wave shading: "
                              "re-bake it)");
+  if (rw["shading"].value("sigma_interpolation", "") != kSigmaInterpolation)
+    throw std::runtime_error("raywave.shading.sigma_interpolation: the render tables interpolate "
+                             "between absorption levels otherwise than this loom-bake (an atlas "
+                             "from an older loom-bake: re-bake it)");
   for (int y = 0; y < 2; ++y) {
     const char* yarn = y == 0 ? "warp" : "weft";
     d.yarn[y] = load_ply_tables(a, yarn);
@@ -226,6 +230,7 @@ RaywaveData load_raywave(const Atlas& a) {
     g.theta_count = dl["theta_count"];
     g.phi_count = dl["phi_count"];
     g.sigmas = dl["sigma_per_mm"].get<std::vector<double>>();
+    g.absorption = layer_absorption_curve(rw);
     if (g.table.width != g.phi_count || g.table.height != g.theta_count * int(g.sigmas.size()))
       throw std::runtime_error(fmt::format("raywave.double_layer: table {} is {}x{}, the grids say "
                                            "{}x{}", key, g.table.width, g.table.height,
@@ -233,6 +238,36 @@ RaywaveData load_raywave(const Atlas& a) {
     d.factors[side] = &a.map(rw["shading"]["factors"][key].get<std::string>());
   }
   d.microfacet_albedo = &a.map(rw["shading"]["microfacet_albedo"].get<std::string>());
+  // Gap diffraction (diffraction_sampling.h), when the atlas has a gap table.
+  const json& dif = rw.value("diffraction", json());
+  if (dif.value("mode", "") == "tables" && dif.contains("files") && dif["files"].contains("gap")) {
+    if (!dif["files"].contains("gap_sampling") || !dif.contains("spot_s") ||
+        !dif.contains("gap_fraction"))
+      throw std::runtime_error("raywave.diffraction: no gap sampling table (an atlas from an "
+                               "older loom-bake: re-bake it)");
+    GapDiffraction& g = d.diffraction;
+    const Image& img = a.map(dif["files"]["gap"].get<std::string>());
+    const int size = dif.value("tile_size", 0);
+    if (img.channels != 3)
+      throw std::runtime_error("raywave.diffraction: the gap table is not RGB");
+    g.table = diffraction_table_from_rgb(img.width, img.height, img.data.data(), size);
+    g.sampling = &a.map(dif["files"]["gap_sampling"].get<std::string>());
+    if (g.sampling->width != LOOM_DIFFRACTION_ICDF_SIZE * g.table.tiles_x ||
+        g.sampling->height != (size + 1) * g.table.tiles_y || g.sampling->channels != 3)
+      throw std::runtime_error(fmt::format(
+          "raywave.diffraction: the gap sampling table is {}x{}, the gap table says {}x{}",
+          g.sampling->width, g.sampling->height, LOOM_DIFFRACTION_ICDF_SIZE * g.table.tiles_x,
+          (size + 1) * g.table.tiles_y));
+    g.spot_s = dif["spot_s"].get<double>();
+    for (int k = 0; k < 2; ++k) g.gap_fraction[k] = dif["gap_fraction"].at(size_t(k)).get<float>();
+    g.yarns[0] = m.at("repeat").at("weft_yarns").get<int>();
+    g.yarns[1] = m.at("repeat").at("warp_yarns").get<int>();
+    for (int t = 0; t < g.table.tiles_x * g.table.tiles_y; ++t)
+      for (int c = 0; c < 3; ++c)
+        g.sampler.push_back(
+            diffraction_sampler(g.table, t % g.table.tiles_x, t / g.table.tiles_x, c, g.spot_s));
+    g.present = true;
+  }
   return d;
 }
 
@@ -254,6 +289,15 @@ struct RaywavePoint::Impl {
   std::vector<std::array<float, 3>> refr_w;
   std::array<float, 3> transl_w{}, diffuse_w{};
   std::vector<RaywaveClosure> list;
+  // gap diffraction (diffraction_sampling.h): the texel's open fraction and the tiles its
+  // offset blends, with their weights (the probabilities of diffraction_tile_pick)
+  const GapDiffraction* dif = nullptr;
+  const Image* albedo_lut = nullptr;
+  float gap = 0;
+  int tiles = 0;
+  std::vector<int> tile;
+  std::vector<float> tile_w;
+  std::vector<std::array<float, 3>> p_out;
 };
 
 namespace {
@@ -278,6 +322,48 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
   std::array<double, 3> sig_layers;
   for (int c = 0; c < 3; ++c)
     sig_layers[size_t(c)] = 0.5 * (d.sigma_rgb[0][size_t(c)] + d.sigma_rgb[1][size_t(c)]);
+  if (d.diffraction.present && p.gap > 0) {
+    const GapDiffraction& g = d.diffraction;
+    q.dif = &g;
+    q.albedo_lut = d.microfacet_albedo;
+    q.gap = std::clamp(p.gap, 0.0f, 1.0f);
+    // The tiles the shader picks from (diffraction_tile_pick) with their probabilities, averaged
+    // over the point's footprint: the shader takes the offset at every shading position, the
+    // maps per texel (as an Image Texture read 'Closest', or its average over the texel).
+    const int n[2] = {g.table.tiles_x, g.table.tiles_y};
+    const int sub = p.du > 0 || p.dv > 0 ? 4 : 1;
+    std::vector<float> w(static_cast<size_t>(n[0] * n[1]), 0.0f);
+    for (int a = 0; a < sub; ++a)
+      for (int b = 0; b < sub; ++b) {
+        const float uu = p.u + ((a + 0.5f) / sub - 0.5f) * p.du;
+        const float vv = p.v + ((b + 0.5f) / sub - 0.5f) * p.dv;
+        const float o[2] = {diffraction_gap_offset(uu, g.yarns[0], g.gap_fraction[0]),
+                            diffraction_gap_offset(vv, g.yarns[1], g.gap_fraction[1])};
+        int lo[2], hi[2];
+        float w_hi[2];
+        for (int k = 0; k < 2; ++k) {  // the expectation of diffraction_tile_pick
+          lo[k] = diffraction_tile_pick(o[k], n[k], 1.0f);
+          hi[k] = diffraction_tile_pick(o[k], n[k], 0.0f);
+          const float f = std::clamp(o[k], 0.0f, 1.0f) * float(std::max(n[k] - 1, 0));
+          w_hi[k] = hi[k] == lo[k] ? 0.0f : f - std::floor(f);
+        }
+        for (int ia = 0; ia < 2; ++ia)
+          for (int ib = 0; ib < 2; ++ib)
+            w[size_t((ib ? hi[1] : lo[1]) * n[0] + (ia ? hi[0] : lo[0]))] +=
+                (ia ? w_hi[0] : 1 - w_hi[0]) * (ib ? w_hi[1] : 1 - w_hi[1]) / float(sub * sub);
+      }
+    for (int t = 0; t < n[0] * n[1]; ++t) {
+      if (w[size_t(t)] <= 0) continue;
+      const int tx = t % n[0], ty = t / n[0];
+      float po[4], s, tv;
+      diffraction_sample_uv(0.5f, g.table.size, tx, ty, n[0], n[1], g.table.size, s, tv);
+      sample_clamped(*g.sampling, s, tv, po);
+      q.tile.push_back(t);
+      q.tile_w.push_back(w[size_t(t)]);
+      q.p_out.push_back({po[0], po[1], po[2]});
+    }
+    q.tiles = int(q.tile.size());
+  }
   if (e == Evaluator::Model) {
     q.refl = asg_table_lobes(d.yarn[y].refl, theta_i, h, 0.0);
     for (int c = 0; c < 3; ++c) {
@@ -396,7 +482,80 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
     q.list.push_back(rd);
     q.list.push_back(rt);
   }
+  // Open gaps: transparent() (kind 4) with the texel's open fraction, less what the gap
+  // diffraction samples (diffraction_sampling.h; those lobes are evaluated in expectation).
+  RaywaveClosure tp;
+  tp.kind = 4;
+  tp.N = vec3(0, 0, 1);
+  for (int c = 0; c < 3; ++c) {
+    float sampled = 0;
+    for (int k = 0; k < q.tiles; ++k) sampled += q.tile_w[k] * q.p_out[k][size_t(c)];
+    tp.weight[size_t(c)] = (1.0f - q.open) * (1.0f - sampled);
+  }
+  q.list.push_back(tp);
   return q;
+}
+
+/// The model's gap diffraction at L (far side, tangent frame, V.z > 0): the open fraction times
+/// obliquity times the pattern normalised to unit power (diffraction_sampling.h), the tiles
+/// blended with their weights, the table read bilinearly in t.
+std::array<float, 3> gap_diffraction_model(const RaywavePoint::Impl& q, vec3 L) {
+  std::array<float, 3> out{0, 0, 0};
+  const GapDiffraction& g = *q.dif;
+  const DiffractionTable& t = g.table;
+  const float obl = diffraction_obliquity(L, q.V);
+  const float tx = diffraction_table_coord(L.x + q.V.x), ty = diffraction_table_coord(L.y + q.V.y);
+  for (int k = 0; k < q.tiles; ++k)
+    for (int c = 0; c < 3; ++c) {
+      const DiffractionSampler& cl = g.sampler[size_t(q.tile[k] * 3 + c)];
+      const double total = 4 * (cl.outside + cl.spot);  // the whole plane: four quadrants
+      if (!(total > 0)) continue;
+      const double D = t.at(q.tile[k] % t.tiles_x, q.tile[k] / t.tiles_x, tx, ty, c);
+      out[size_t(c)] += float(q.tile_w[k] * q.gap * obl * D / total);
+    }
+  return out;
+}
+
+/// The closures' gap diffraction at L, in expectation over the shader's random numbers: the
+/// sampled lobes (diffraction_sampling.h, Cycles' refraction closure) integrated against the
+/// distribution the sampling table realises (DiffractionSampler::probability of each quadrature
+/// cell, exact for its integrable spikes on the axes), by midpoint quadrature over direction sums
+/// within 6 kernel widths of L's.
+std::array<float, 3> gap_diffraction_closures(const RaywavePoint::Impl& q, vec3 L) {
+  std::array<float, 3> out{0, 0, 0};
+  const GapDiffraction& g = *q.dif;
+  // 13 x 13 points over +-4 kernel widths: 0.994 of a lobe's integral (measured; 25 x 25 over
+  // +-6 widths gives the same).
+  const int n = 13;
+  const float half = 4.0f * float(LOOM_DIFFRACTION_KERNEL_RAD), ds = 2 * half / n;
+  const vec3 Ng(0, 0, 1);
+  const float sx0 = L.x + q.V.x, sy0 = L.y + q.V.y;
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) {
+      const float sx = sx0 - half + (a + 0.5f) * ds, sy = sy0 - half + (b + 0.5f) * ds;
+      vec3 Ls, N;
+      if (!diffraction_light_direction(q.V, sx, sy, Ls)) continue;
+      float alpha;
+      if (!diffraction_lobe_closure(q.V, Ls, N, alpha)) continue;  // (given to transparent())
+      float ls, lt, E[4];
+      microfacet_albedo_uv(dot(N, q.V), alpha, ls, lt);
+      sample_clamped(*q.albedo_lut, ls, lt, E);
+      const cycles::MicrofacetRefraction cl(cycles::ensure_valid_specular_reflection(Ng, q.V, N),
+                                            alpha, float(LOOM_RAYWAVE_ETA), Ng, q.V,
+                                            cycles::Distribution::Beckmann);
+      const float f = cl.eval(L);
+      if (!(f > 0)) continue;
+      for (int k = 0; k < q.tiles; ++k)
+        for (int c = 0; c < 3; ++c) {
+          const double prob = g.sampler[size_t(q.tile[k] * 3 + c)].probability(
+              sx - 0.5 * ds, sx + 0.5 * ds, sy - 0.5 * ds, sy + 0.5 * ds);
+          // LOOM_DIFFRACTION_SAMPLES lobes per channel, each of this distribution.
+          const float w = LOOM_DIFFRACTION_SAMPLES *
+                          diffraction_lobe_weight(q.V, Ls, q.p_out[k][size_t(c)], E[1]);
+          out[size_t(c)] += float(q.tile_w[k] * q.gap * prob * w * f);
+        }
+    }
+  return out;
 }
 
 std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
@@ -421,12 +580,20 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
       }
       out[size_t(c)] = float(v);
     }
+    if (q.dif && L.z < 0) {
+      const auto g = gap_diffraction_model(q, L);
+      for (int c = 0; c < 3; ++c) out[size_t(c)] += g[size_t(c)];
+    }
     return out;
   }
   const vec3 n(0, 0, 1);
   const float tr = cycles::translucent_eval(n, L, n), df = cycles::diffuse_eval(n, L, n);
   for (int c = 0; c < 3; ++c)
     out[size_t(c)] = q.transl_w[size_t(c)] * tr + q.diffuse_w[size_t(c)] * df;
+  if (q.dif && L.z < 0) {
+    const auto g = gap_diffraction_closures(q, L);
+    for (int c = 0; c < 3; ++c) out[size_t(c)] += g[size_t(c)];
+  }
   for (size_t i = 0; i < q.refr.size(); ++i) {
     const float g = q.refr[i].eval(L);
     for (int c = 0; c < 3; ++c) out[size_t(c)] += q.refr_w[i][size_t(c)] * g;
@@ -473,6 +640,44 @@ MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int tex
       return std::pair<float, float>(pm.eval(l)[1], pc.eval(l)[1]);
     });
   });
+}
+
+}  // namespace loom
+
+namespace loom {
+
+DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, Evaluator e,
+                                 int texels, int sphere_n) {
+  const Image& ref = a.map("ply_frame");
+  const int side = std::max(1, int(std::lround(std::sqrt(double(std::max(texels, 1))))));
+  const double dw = (2.0 / sphere_n) * (M_PI / sphere_n);
+  std::vector<DirectionalAlbedo> per(size_t(side) * side);
+  tbb::parallel_for(0, side * side, [&](int idx) {
+    const int ix = int((idx % side + 0.5) / side * ref.width);
+    const int iy = int((idx / side + 0.5) / side * ref.height);
+    const SurfacePoint p = texel_surface(a, ix, iy);
+    const RaywavePoint pt(d, p, wo, e);
+    DirectionalAlbedo& r = per[size_t(idx)];
+    for (int i = 0; i < sphere_n; ++i)
+      for (int j = 0; j < 2 * sphere_n; ++j) {
+        const double z = -1 + (i + 0.5) * 2.0 / sphere_n, rr = std::sqrt(1 - z * z);
+        const double ph = (j + 0.5) * M_PI / sphere_n;
+        const vec3 l(float(rr * std::cos(ph)), float(rr * std::sin(ph)), float(z));
+        const std::array<float, 3> f = pt.eval(l);
+        auto& acc = (z > 0) == (wo.z > 0) ? r.reflect : r.transmit;
+        for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
+      }
+    r.delta = std::clamp(p.gap, 0.0f, 1.0f);
+  });
+  DirectionalAlbedo out;
+  for (const DirectionalAlbedo& r : per) {
+    for (int c = 0; c < 3; ++c) {
+      out.reflect[size_t(c)] += r.reflect[size_t(c)] / double(per.size());
+      out.transmit[size_t(c)] += r.transmit[size_t(c)] / double(per.size());
+    }
+    out.delta += r.delta / double(per.size());
+  }
+  return out;
 }
 
 }  // namespace loom

@@ -383,6 +383,8 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     s.components.transmission = c.boolean("transmission", s.components.transmission);
     s.components.gaps = c.boolean("gaps", s.components.gaps);
     s.components.shadowing = c.boolean("shadowing", s.components.shadowing);
+    s.components.multi_ply = c.boolean("multi_ply", s.components.multi_ply);
+    s.components.double_layer = c.boolean("double_layer", s.components.double_layer);
     s.perlin.enabled = c.boolean("perlin", s.perlin.enabled);
     c.reject_unknown();
   }
@@ -526,6 +528,8 @@ json canonical_spec(const FabricSpec& s) {
                {{"transmission", s.components.transmission},
                 {"gaps", s.components.gaps},
                 {"shadowing", s.components.shadowing},
+                {"multi_ply", s.components.multi_ply},
+                {"double_layer", s.components.double_layer},
                 {"perlin", s.perlin.enabled}}},
               {"perlin",
                {{"seed", s.perlin.seed},

@@ -18,6 +18,8 @@
 #include "loom/ply_tables.h"
 #include "loom/shading.h"
 #include "loom/spec.h"
+#include "loom/ply_maps.h"
+#include "loom/weave.h"
 
 using nlohmann::json;
 namespace fs = std::filesystem;
@@ -109,6 +111,10 @@ int main(int argc, char** argv) {
   auto* check = app.add_subcommand("check", "validate a spec and print its canonical form");
   check->add_option("spec", check_arg, "spec file or preset name")->required();
   check->add_option("--quality", check_quality, "override model.quality");
+  bool check_geometry = false;
+  check->add_flag("--geometry", check_geometry,
+                  "print {\"spec\": canonical spec, \"repeat_um\": [x, y], \"warp_yarns\", "
+                  "\"weft_yarns\"} (the weave repeat's size and yarn counts)");
 
   auto* presets = app.add_subcommand("presets", "list the built-in presets, or print one");
   std::string preset_name;
@@ -141,6 +147,17 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 4096));
   mapping->add_option("--views", mapping_views, "view directions over the hemisphere")
       ->check(CLI::Range(1, 1024));
+
+  auto* albedo = eval->add_subcommand(
+      "albedo", "directional albedo of a ray-wave atlas: energy reflected and transmitted");
+  std::string albedo_atlas, albedo_wo_s, albedo_evaluator = "model";
+  int albedo_texels = 64;
+  albedo->add_option("--atlas", albedo_atlas, "atlas directory")->required();
+  albedo->add_option("--wo", albedo_wo_s, "X,Y,Z towards the viewer (tangent frame)")->required();
+  albedo->add_option("--evaluator", albedo_evaluator, "model | closures")
+      ->check(CLI::IsMember({"model", "closures"}));
+  albedo->add_option("--texels", albedo_texels, "texels sampled over the repeat")
+      ->check(CLI::Range(1, 4096));
 
   auto* asg = eval->add_subcommand(
       "asg", "one ASG lobe (Eq. S.1, S.2) at a direction, and its integral over the sphere");
@@ -281,6 +298,17 @@ int main(int argc, char** argv) {
     if (*check) {
       auto res = loom::load_spec(check_arg, check_quality);
       if (!res.ok()) return report_spec_errors(check_arg, res.errors);
+      if (check_geometry) {
+        const loom::Weave w = loom::make_weave(res.spec.weave);
+        const loom::SurfaceGeometry g(res.spec);  // (the repeat as the maps are baked)
+        std::cout << json{{"spec", loom::canonical_spec(res.spec)},
+                          {"repeat_um", {g.repeat_x(), g.repeat_y()}},
+                          {"warp_yarns", w.rows()},
+                          {"weft_yarns", w.cols()}}
+                         .dump(2)
+                  << std::endl;
+        return 0;
+      }
       std::cout << loom::canonical_spec(res.spec).dump(2) << std::endl;
       return 0;
     }
@@ -349,6 +377,33 @@ int main(int argc, char** argv) {
                         {"texels", e.texels},
                         {"pairs", e.views},
                         {"tier", rw ? "raywave" : "surface"}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*albedo) {
+      std::vector<double> wo;
+      if (!parse_vec(albedo_wo_s, 3, wo) || wo[0] * wo[0] + wo[1] * wo[1] + wo[2] * wo[2] == 0) {
+        std::cerr << "error: --wo: expected X,Y,Z (three finite numbers, not all zero)\n";
+        return 2;
+      }
+      auto atlas = loom::load_atlas(albedo_atlas);
+      if (atlas.manifest.value("tier", "") != "raywave") {
+        std::cerr << "error: --atlas: eval albedo needs a ray-wave atlas (this one is \""
+                  << atlas.manifest.value("tier", "?") << "\")\n";
+        return 2;
+      }
+      const loom::shading::vec3 vo = loom::shading::normalize(
+          loom::shading::vec3{float(wo[0]), float(wo[1]), float(wo[2])});
+      const auto r = loom::raywave_albedo(
+          atlas, loom::load_raywave(atlas), vo,
+          albedo_evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model,
+          albedo_texels);
+      std::cout << json{{"reflect", r.reflect},
+                        {"transmit", r.transmit},
+                        {"delta_transmit", r.delta},
+                        {"evaluator", albedo_evaluator},
+                        {"wo", {vo.x, vo.y, vo.z}}}
                        .dump()
                 << std::endl;
       return 0;

@@ -17,6 +17,15 @@ for f in white_silk_organza orange_polyester_satin beige_silk_satin cream_cotton
          gray_wool_twill black_polyester_plain blue_cotton_satin; do
   "$out/bin/loom-bake" bake "$f" -o "$out/raywave/$f" --quality draft --progress=none
 done
+# The organza's non-wave variant (delta transmission through the gaps), for the diffraction
+# cross check of test_raywave_render.py.
+"$out/bin/loom-bake" presets white_silk_organza | python3 -c '
+import json, sys
+d = json.load(sys.stdin)
+d["name"], d["wave"] = "white_silk_organza_delta", {"diffraction": False}
+json.dump(d, sys.stdout)' > "$out/organza_delta.json"
+"$out/bin/loom-bake" bake "$out/organza_delta.json" -o "$out/raywave-delta/white_silk_organza" \
+  --quality draft --progress=none
 # One final-quality ray-wave atlas (the most lobes a preset bakes: the largest node group).
 "$out/bin/loom-bake" bake white_silk_organza -o "$out/raywave-final/white_silk_organza" \
   --quality final --progress=none

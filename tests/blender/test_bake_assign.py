@@ -109,6 +109,62 @@ def drive_modal(obj, mat, esc_after=None, timeout=120.0):
     return res, op, wm
 
 
+def check_scene_model(plane, mat):
+    """Bake & Assign with Model "By Scene" in three scenes (see the caller)."""
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 960, 540
+    scene.render.resolution_percentage = 100
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))  # 50 mm, 36 mm sensor
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    lt.look_along(cam, (0.0, 0.0, -1.0))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
+    scene.collection.objects.link(sun)
+    mat.loom.preset = "white_silk_organza"
+    mat.loom.quality = "draft"
+    mat.loom.model = "SCENE"
+    mat.loom.scale_mode = "PHYSICAL"
+    cases = (("far", 2.0, (0.0, 0.0, -1.0)), ("close, lit from behind", 0.02, (0.0, 0.0, 1.0)),
+             ("close, lit from the front", 0.02, (0.3, 0.0, -0.95)))
+    for what, dist, light_dir in cases:
+        cam.location = (0.0, 0.0, dist)
+        lt.look_along(sun, light_dir)  # the direction the light travels
+        with bpy.context.temp_override(object=plane, material=mat):
+            res = bpy.ops.loom.bake_assign()
+        assert res == {"FINISHED"}, (what, res)
+        with open(os.path.join(mat.loom.atlas_dir, "manifest.json"), encoding="utf-8") as f:
+            m = json.load(f)
+        report = mat.loom.needs_report
+        print(f"loom-test: By Scene, {what}: {m['tier']} atlas; " + report.replace("\n", "; "))
+        if what == "far":
+            assert m["tier"] == "surface", (what, m["tier"], report)
+            assert "surface tier" in report, report
+            continue
+        assert m["tier"] == "raywave", (what, m["tier"], report)
+        rw = m["raywave"]
+        assert rw["yarns"]["warp"]["simulation"]["includes_multi_ply"], "3-ply yarns: multi-ply"
+        behind = "behind" in what
+        assert (rw["diffraction"]["mode"] == "tables") == behind, (what, rw["diffraction"])
+        assert (rw["double_layer"]["mode"] == "tables") == behind, (what, rw["double_layer"])
+        assert m["spec"]["components"]["double_layer"] == behind
+        groups = [n.node_tree for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
+        assert len(groups) == 1 and groups[0].get("loom_tier") == "raywave", groups
+    # As Specified: the preset's own tier and components, whatever the camera.
+    mat.loom.model = "SPEC"
+    cam.location = (0.0, 0.0, 2.0)
+    with bpy.context.temp_override(object=plane, material=mat):
+        assert bpy.ops.loom.bake_assign() == {"FINISHED"}
+    with open(os.path.join(mat.loom.atlas_dir, "manifest.json"), encoding="utf-8") as f:
+        m = json.load(f)
+    assert m["tier"] == "raywave" and m["raywave"]["diffraction"]["mode"] == "tables", m["tier"]
+    print("loom-test: As Specified bakes the preset's ray-wave tier with a far camera")
+    for obj in (cam, sun):
+        bpy.data.objects.remove(obj)
+    mat.loom.model = "SCENE"
+    mat.loom.scale_mode = "REPEATS"
+    mat.loom.preset = "plain"
+
+
 def main():
     args = lt.parse_args()
     import _cycles
@@ -270,6 +326,12 @@ def main():
           f"{len(groups[0].nodes)} nodes ({time.monotonic() - t0:.1f} s)")
     mat.loom.preset = "plain"
     loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
+
+    # 5e. Model "By Scene" (scene_needs.py): what is baked follows the camera and the lights.
+    #     The white silk organza at its real size: a far camera bakes the surface tier; a close
+    #     one (yarns 100 um, about 7 px at 2 cm) the ray-wave tier, with diffraction and the
+    #     double layer only when a light is behind the cloth.
+    check_scene_model(plane, mat)
 
     # 6. The API in every mode; without OSL nothing may leave a Script node behind.
     for mode in ("auto", "osl", "nodes"):

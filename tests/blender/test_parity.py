@@ -45,6 +45,14 @@ PAIRS = [
     ((0.3, -0.2, -0.933), (-0.2, 0.4, -0.894)),
     ((0.1, 0.5, 0.86), (0.4, 0.0, -0.917)),
 ]
+# With --diffraction (fabrics with open gaps): light from behind a little off straight through,
+# in the arms of the gap diffraction's cross (direction sums s = wi.xy + wo.xy along x, along y,
+# and seen off the normal; diffraction_sampling.h), where the sampled lobes carry the light.
+DIFFRACTION_PAIRS = [
+    ((0.06, 0.0, -0.9982), (0.0, 0.0, 1.0)),
+    ((0.0, 0.07, -0.99755), (0.0, 0.0, 1.0)),
+    ((-0.17, -0.1, -0.9804), (0.25, 0.1, 0.963)),
+]
 # Node mode is compared with the emulator's node-mode backend (loom-bake eval --backend nodes):
 # Cycles' SVM Translucent BSDF lifts its normal with ensure_valid_specular_reflection when the
 # material's Bump Map Correction is on (kernel/svm/closure.h), OSL's translucent() does not; the
@@ -63,6 +71,8 @@ def extra_args(p):
     p.add_argument("--interpolation", default="Closest", choices=["Closest", "Linear"])
     p.add_argument("--pairs", default="", help="comma-separated pair indices (default all)")
     p.add_argument("--json", default=None, help="write the measured numbers here")
+    p.add_argument("--diffraction", action="store_true",
+                   help="also the pairs in the gap diffraction's cross (DIFFRACTION_PAIRS)")
 
 
 def eval_closures(loom_bake, atlas, wi, wo, evaluator="closures"):
@@ -114,7 +124,7 @@ def main():
     assert loom_bake, "no loom-bake (--loom-bake or $LOOM_BAKE)"
     atlas = args.atlas or loom.api.bake("plain", "preview", loom_bake=loom_bake,
                                         cache_dir=os.path.join(args.out, "cache"))
-    pairs = list(enumerate(PAIRS))
+    pairs = list(enumerate(PAIRS + (DIFFRACTION_PAIRS if args.diffraction else [])))
     if args.pairs:
         keep = {int(i) for i in args.pairs.split(",")}
         pairs = [p for p in pairs if p[0] in keep]

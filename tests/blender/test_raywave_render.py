@@ -1,6 +1,8 @@
 """Ray-wave renders in node mode: a swatch of each given atlas, front-lit and back-lit, renders
 finite and not black, and back-lit white silk organza (sheer, open gaps) is visibly brighter than
-back-lit gray wool twill (opaque). An atlas whose node group is too big for Cycles' SVM stack
+back-lit gray wool twill (opaque); looking through the organza towards a small sun behind it
+shows the gap diffraction's cross along the weave's axes, which its non-wave variant (delta
+transmission) does not. An atlas whose node group is too big for Cycles' SVM stack
 renders black (Cycles only prints "out of SVM stack space"), which the non-black check catches:
 pass a final-quality atlas with --extra.
 
@@ -10,9 +12,11 @@ pixel is light that crossed the cloth: the gaps (a delta, not seen unless aligne
 lobes and the double layer's diffuse part.
 
     blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_raywave_render.py \
-        -- --organza ATLAS --wool ATLAS --out DIR [--extra NAME=ATLAS] [--samples 32] [--res 64]
+        -- --organza ATLAS --wool ATLAS --out DIR [--organza-delta ATLAS] [--extra NAME=ATLAS]
+        [--samples 32] [--res 64]
 """
 
+import math
 import os
 import re
 import sys
@@ -34,6 +38,8 @@ def extra_args(p):
     p.add_argument("--extra", action="append", default=[],
                    help="NAME=ATLAS rendered too (finite, not black), e.g. a final-quality atlas "
                         "whose larger group must still fit Cycles' SVM stack")
+    p.add_argument("--organza-delta", default=None,
+                   help="the organza baked with wave.diffraction off, for the cross check")
     p.add_argument("--samples", type=int, default=32)
     p.add_argument("--res", type=int, default=64)
 
@@ -73,6 +79,79 @@ def render(args, atlas, light, name):
     for g in list(bpy.data.node_groups):
         bpy.data.node_groups.remove(g)
     return mean
+
+
+CROSS_RES = 96
+CROSS_FOV = 0.3  # radians across the image
+
+
+def render_through(args, atlas, name):
+    """The swatch seen from above along the normal by a perspective camera (CROSS_FOV across),
+    a small sun straight behind it: pixel (i, j) looks about (i - c, j - c) CROSS_FOV / CROSS_RES
+    radians off the sun's direction, so the image maps the transmitted light over the direction
+    sum s = wi.xy + wo.xy (diffraction_sampling.h). The weave at its real size, a few repeats a
+    pixel. Black world: the sun itself is not visible to camera rays, so what is seen is light
+    that the cloth sends off the straight-through direction."""
+    import loom.api
+
+    scene = lt.empty_scene()
+    scene.cycles.samples = args.samples * 4
+    scene.render.resolution_x = scene.render.resolution_y = CROSS_RES
+    scene.render.resolution_percentage = 100
+    plane = lt.add_plane("Swatch", half=0.2, uv_per_meter=1.0)
+    cam_data = bpy.data.cameras.new("Persp")
+    cam_data.sensor_fit = "HORIZONTAL"
+    cam_data.sensor_width = 36.0
+    cam_data.lens = 18.0 / math.tan(0.5 * CROSS_FOV)
+    cam = bpy.data.objects.new("Camera", cam_data)
+    cam.location = (0.0, 0.0, 0.5)
+    lt.look_along(cam, (0.0, 0.0, -1.0))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    sun_data = bpy.data.lights.new("Sun", type="SUN")
+    sun_data.energy = SUN
+    sun_data.angle = 0.003
+    sun = bpy.data.objects.new("Sun", sun_data)
+    lt.look_along(sun, (0.0, 0.0, 1.0))  # shining up through the cloth
+    scene.collection.objects.link(sun)
+    loom.api.assign(plane, atlas, mode="nodes", scale=None)
+    img = lt.render_to_exr(scene, os.path.join(args.out, f"{name}_through.exr"))
+    assert img.finite(), f"{name}: non-finite pixels"
+    for g in list(bpy.data.node_groups):
+        bpy.data.node_groups.remove(g)
+    return img
+
+
+def arms_over_diagonals(img) -> float:
+    """Mean radiance on the weave's axes through the image centre (within 1.5 pixels of the
+    lines x = c, y = c) over the mean on the diagonals (within 1.5 pixels of |x - c| = |y - c|),
+    between 8 and 40 pixels from the centre (0.025 to 0.125 radians)."""
+    c = (img.w - 1) / 2
+    arms, diags = [], []
+    for j in range(img.h):
+        for i in range(img.w):
+            dx, dy = i - c, j - c
+            r = math.hypot(dx, dy)
+            if not 8 <= r <= 40:
+                continue
+            v = sum(img.px[(j * img.w + i) * 4 + k] for k in range(3)) / 3
+            if min(abs(dx), abs(dy)) <= 1.5:
+                arms.append(v)
+            elif abs(abs(dx) - abs(dy)) <= 1.5 * math.sqrt(2):
+                diags.append(v)
+    return (math.fsum(arms) / len(arms)) / max(math.fsum(diags) / len(diags), 1e-12)
+
+
+def check_cross(args):
+    """The gap diffraction's cross (diffraction_sampling.h): looking through the organza at the
+    sun, the light off the straight-through direction gathers on the weave's axes. Its non-wave
+    variant spreads it with no preferred direction."""
+    wave = arms_over_diagonals(render_through(args, args.organza, "organza"))
+    delta = arms_over_diagonals(render_through(args, args.organza_delta, "organza_delta"))
+    print(f"loom-test: through the organza towards the sun, arms / diagonals: diffraction "
+          f"{wave:.2f}, delta transmission {delta:.2f}", flush=True)
+    assert wave > 3.0, f"no diffraction cross: arms / diagonals {wave:.2f}"
+    assert 0.7 < delta < 1.4, f"the delta variant has a cross ({delta:.2f})"
 
 
 def check_osl_parameters(atlas):
@@ -126,6 +205,8 @@ def main():
         name, atlas = item.split("=", 1)
         for light in LIGHTS:
             render(args, atlas, light, name)
+    if args.organza_delta:
+        check_cross(args)
     ratio = means[("organza", "back")] / means[("wool", "back")]
     print(f"loom-test: back-lit organza / wool = {ratio:.2f}")
     # "Visibly": more than half a stop (1.5x). The gaps' delta transmission is not in view here,

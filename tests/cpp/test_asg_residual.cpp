@@ -97,9 +97,10 @@ TEST(AsgResidual, LobesPlusResidualHoldTheSimulatedEnergy) {
         total_res += r;
         EXPECT_GE(fit[side] + r, data[side] - tol)
             << "slice " << s << " level " << k << " side " << side;
-        if (r > 0)
+        if (r > 0) {
           EXPECT_NEAR(fit[side] + r, data[side], tol)
               << "slice " << s << " level " << k << " side " << side;
+        }
       }
     }
   }

@@ -125,7 +125,9 @@ TEST(Absorption, ColourThroughTheWholeChain) {
       EXPECT_GE(ya.sigma_rgb[size_t(c)], 0.0);
     }
     // Redder light is absorbed less in an orange yarn.
-    if (rgb[0] > rgb[2]) EXPECT_LT(ya.sigma_rgb[0], ya.sigma_rgb[2]);
+    if (rgb[0] > rgb[2]) {
+      EXPECT_LT(ya.sigma_rgb[0], ya.sigma_rgb[2]);
+    }
   }
   // Below the reflection floor a channel is lifted towards it (a black fiber still glints): not
   // exactly to it, since the working space's matching functions have negative lobes where the

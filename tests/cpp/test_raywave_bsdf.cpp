@@ -371,6 +371,47 @@ TEST(RaywaveShading, DegenerateInputsGiveFiniteClosures) {
   EXPECT_EQ(sh::asg_microfacet_weight(nan, 0.5f), 0.0f);
 }
 
+TEST(RaywaveShading, SwitchesBakeOnlyWhatIsAsked) {
+  // The supplement's switches off (multi-ply, double layer, diffraction, noise): the atlas says
+  // so, holds none of their tables, and renders one layer of one ply: double-layer factors 1 and
+  // no diffuse forward part (s = 0), delta transmission through the gaps.
+  auto d = loom::preset("white_silk_organza");
+  d["components"] = {{"multi_ply", false}, {"double_layer", false}};
+  d["wave"] = {{"diffraction", false}, {"noise", false}};
+  auto r = loom::parse_spec(d, "draft");
+  ASSERT_TRUE(r.ok());
+  const auto dir = loom::test::scratch("switches.atlas");
+  loom::bake_atlas(r.spec, dir, {});
+  const loom::Atlas a = loom::load_atlas(dir);
+  const nlohmann::json& rw = a.manifest["raywave"];
+  EXPECT_EQ(rw["double_layer"]["mode"], "off");
+  EXPECT_EQ(rw["double_layer"]["blend"], 0.0);
+  EXPECT_EQ(rw["yarns"]["warp"]["simulation"]["includes_multi_ply"], false);
+  EXPECT_EQ(rw["diffraction"]["mode"], "delta");
+  EXPECT_TRUE(rw["noise"]["files"].empty());
+  for (const char* t : {"diffraction_gap", "diffraction_gap_sampling", "noise_refl", "noise_high"})
+    EXPECT_FALSE(a.manifest["textures"].contains(t)) << t;
+  const loom::RaywaveData data = loom::load_raywave(a);
+  EXPECT_EQ(data.blend, 0.0);
+  EXPECT_FALSE(data.diffraction.present);
+  for (int side = 0; side < 2; ++side) {
+    const loom::Image& f = *data.factors[side];
+    for (size_t i = 0; i < f.data.size(); ++i) ASSERT_EQ(f.data[i], 1.0f) << side << " " << i;
+  }
+  // In the mixture the diffuse forward part of Eq. S.22 (the translucent closure just before
+  // the residual's diffuse one, raywave_bsdf.cpp) has weight open s F_total = 0.
+  const loom::SurfacePoint p = loom::sample_surface(a, 0.3f, 0.6f);
+  ASSERT_LT(p.gap, 1.0f);
+  const loom::RaywavePoint pc(data, p, sh::normalize(vec3(0.1f, 0.2f, 0.97f)),
+                              loom::Evaluator::Closures);
+  const auto& list = pc.closures();
+  size_t res = 0;
+  while (res < list.size() && list[res].kind != 3) ++res;
+  ASSERT_TRUE(res > 0 && res < list.size());
+  EXPECT_EQ(list[res - 1].kind, 1);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(list[res - 1].weight[size_t(c)], 0.0f);
+}
+
 namespace loom::test {
 
 void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
@@ -484,6 +525,28 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
                                        sh::normalize(vec3(-0.3f, 0.2f, 0.8f)),
                                        loom::Evaluator::Closures);
   EXPECT_NEAR(j["f_cos"][1].get<double>(), want[1], 1e-5 + 1e-4 * want[1]);
+  // eval albedo: the energy split of the model and of the closure mixture; together with the
+  // open fraction's delta it stays below 1, and the mixture carries the model's energy.
+  double total[2] = {0, 0};
+  int i = 0;
+  for (const char* which : {"model", "closures"}) {
+    ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval albedo --atlas " + dir.string() +
+                      " --wo 0.2,0.1,0.97 --texels 16 --evaluator " + which,
+                  &out),
+              0)
+        << out;
+    const auto a = nlohmann::json::parse(out);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_GE(a["reflect"][c].get<double>(), 0.0);
+      EXPECT_GE(a["transmit"][c].get<double>(), 0.0);
+      EXPECT_LT(a["reflect"][c].get<double>() + a["transmit"][c].get<double>() +
+                    a["delta_transmit"].get<double>(),
+                1.0);
+    }
+    total[i++] = a["reflect"][1].get<double>() + a["transmit"][1].get<double>();
+  }
+  EXPECT_GT(total[0], 0.01);
+  EXPECT_NEAR(total[1], total[0], 0.15 * total[0]);
 }
 
 }  // namespace loom::test

@@ -186,3 +186,24 @@ TEST(Spec, WaveFields) {
   EXPECT_TRUE(def.spec.wave.noise);
   EXPECT_EQ(def.spec.wave.beam_waist_um, 10.0);
 }
+
+TEST(Spec, RaywaveComponentSwitches) {
+  json d = base();
+  d["components"] = {{"multi_ply", "no"}};
+  expect_one_error(d, {"$.components.multi_ply"});
+  d["components"] = {{"double_layer", 0}};
+  expect_one_error(d, {"$.components.double_layer"});
+  d["components"] = {{"multi_ply", false}, {"double_layer", false}};
+  auto r = parse_spec(d);
+  ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
+  EXPECT_FALSE(r.spec.components.multi_ply);
+  EXPECT_FALSE(r.spec.components.double_layer);
+  const json c = loom::canonical_spec(r.spec);
+  EXPECT_EQ(c["components"]["multi_ply"], false);
+  EXPECT_EQ(c["components"]["double_layer"], false);
+  // Defaults: both on; they are part of the canonical spec (and so of the bake's identity).
+  auto def = parse_spec(base());
+  EXPECT_TRUE(def.spec.components.multi_ply);
+  EXPECT_TRUE(def.spec.components.double_layer);
+  EXPECT_NE(loom::canonical_spec(def.spec).dump(), c.dump());
+}

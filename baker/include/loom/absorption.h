@@ -25,17 +25,13 @@
 #include <array>
 #include <vector>
 
+#include "loom/absorption_curve.h"
 #include "loom/spec.h"
 #include "loom/spectral_upsampling.h"
 
 namespace loom {
 
 inline constexpr double kAbsorptionFitMinEnergy = 0.05;
-
-struct AbsorptionCurve {
-  std::vector<double> sigma_per_mm, energy;
-  uint64_t rays = 0;
-};
 
 /// The wide-beam sigma -> energy relation of the yarn's ply at the quality's ray count.
 AbsorptionCurve absorption_curve(const YarnSpec& y, Quality q);
@@ -49,12 +45,6 @@ struct AbsorptionFit {
   double sigma(double c, double sigma_max) const;
 };
 AbsorptionFit fit_absorption(const AbsorptionCurve& curve);
-
-/// Energy of the simulated curve at any sigma (linear in log E between levels, clamped).
-double curve_energy(const AbsorptionCurve& curve, double sigma_per_mm);
-/// The sigma in [0, sigma_max] whose curve energy is e (0 for e >= E(0), sigma_max below the
-/// reachable range).
-double curve_sigma(const AbsorptionCurve& curve, double e, double sigma_max);
 
 /// A yarn colour turned into absorption: the spectrum, sigma(lambda) at the upsampler's
 /// wavelengths, and per RGB channel the sigma whose energy equals the channel's share of the

@@ -6,7 +6,8 @@
 // jointly with Ceres (Levenberg-Marquardt, analytic derivatives from asg_eval_grad). Evaluation
 // between samples interpolates the corner sets bilinearly (S.6-S.8). For sigma_k > 0 the lobes
 // stay fixed and per-block scale-downs s_{l,k} are fitted (S.9), s_{l,0} = 1, interpolated
-// linearly in sigma (S.10-S.12).
+// between levels (S.10-S.12) with the weight of absorption_curve.h (linear in the ply's simulated
+// energy, which S.10's linear weight in sigma overshoots by up to 4x on the presets' levels).
 //
 // Choices where the text is silent:
 //  * Shared corners. The supplement fits every block on its own, so a corner slice shared by
@@ -34,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "loom/absorption_curve.h"
 #include "loom/ply_scattering.h"
 
 namespace loom {
@@ -75,6 +77,9 @@ struct AsgTable {
   /// (theta_i^m, h^n), absorption level k and side (0 backward, 1 forward):
   /// residual[((m * N + n) * K + k) * 2 + side], N = h.size(). Empty: not computed.
   std::vector<double> residual;
+  /// The ply's sigma -> energy curve, the interpolation variable between levels
+  /// (absorption_curve.h: sigma_interval). Empty: S.10's weight, linear in sigma.
+  AbsorptionCurve absorption;
   int node_rows() const { return int(theta_i.size() / 2) + 1; }
   int node_cols() const { return int(h.size() / 2) + 1; }
   const AsgLobe& node(int i, int j, int l) const {
@@ -92,9 +97,6 @@ AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s);
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma);
 /// S.8 / S.12: the fitted scattering density at ply-space direction wo.
 double asg_table_eval(const AsgTable& t, double theta_i, double h, double sigma, const Vec3d& wo);
-/// Eq. S.10: the absorption interval [sigmas[k], sigmas[k + 1]] and weight t of sigma, clamped
-/// to the grid (non-finite or negative sigma: 0); k = 0, t = 0 for a single level.
-void asg_sigma_interval(const std::vector<double>& sigmas, double sigma, int& k, double& t);
 /// Sum of S.1 over lobes.
 double asg_mixture_eval(const std::vector<AsgLobe>& lobes, const Vec3d& wo);
 

@@ -41,7 +41,8 @@ std::vector<double> asg_fit_residual(const PlySimResult& sim, const AsgTable& t,
 void ply_sim_side_energy(const PlySimSettings& s, const float* density, double& back,
                          double& forward);
 
-/// Residual of table t at (theta_i, h, sigma): bilinear between slices, linear in sigma (S.10),
+/// Residual of table t at (theta_i, h, sigma): bilinear between slices, between levels by
+/// S.10 with t's absorption curve (absorption_curve.h),
 /// clamped to the grids; zero if the table has none.
 void asg_residual_at(const AsgTable& t, double theta_i, double h, double sigma, double& back,
                      double& forward);

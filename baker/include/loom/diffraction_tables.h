@@ -43,6 +43,9 @@ struct DiffractionTable {
   int width() const { return tiles_x * size; }
   int height() const { return tiles_y * size; }
   const float* px(int x, int y) const { return &rgb[(size_t(y) * width() + x) * 3]; }
+  /// Channel c of tile (tile_x, tile_y) at table coordinates (t_x, t_y) in [0, 1], bilinear
+  /// between the texels (texel k at t = k / (size - 1)).
+  double at(int tile_x, int tile_y, double t_x, double t_y, int c) const;
 };
 
 /// The gap widths (um) of a fabric: {g_x, g_y}; <= 0 when the yarns touch or overlap.
@@ -54,5 +57,50 @@ DiffractionTable diffraction_gap_table(double gx, double gy, double w0, const Sp
 /// The ply-edge table for beam waist w0 (um); d_cut = LOOM_DIFFRACTION_DCUT_WAISTS w0.
 DiffractionTable diffraction_edge_table(double w0, const SpectralRgb& rgb,
                                         const DiffractionSettings& s);
+
+// ---- Sampling the gap table at render time (osl/include/loom/diffraction_sampling.h) ----
+
+/// Radius s_spot, in the direction sum s, of the central spot that stays delta transmission:
+/// three standard deviations lambda / (2 pi w0) of a free Gaussian beam's pattern at 700 nm,
+/// at most 0.05 (3 degrees; beams narrower than 6.7 um then keep part of their spot sampled).
+double diffraction_spot_radius(double w0_um);
+
+/// The distribution the shaders sample for one tile and channel (diffraction_sampling.h), in
+/// table coordinates t over one quadrant. Choice: piecewise uniform on a sub-grid `sub` times
+/// finer than the table (the table read bilinearly at sub-cell centres, times the Jacobian
+/// (2 S_MAX t_x)(2 S_MAX t_y) of s = S_MAX t^2), as a product of the marginal in t_y (per
+/// sub-row) and the conditional in t_x given the table row (one per row of table cells: the
+/// sampling image holds one conditional row per table row). Sub-cells whose centre lies inside
+/// the spot (|s| < spot_s) are left out of both and counted in `spot`.
+struct DiffractionSampler {
+  int cells = 0, sub = 0;  ///< table cells per axis (size - 1), sub-cells per table cell
+  std::vector<double> marginal;     ///< per sub-row (cells sub), masses
+  std::vector<double> conditional;  ///< per table row j, per sub-column: [j (cells sub) + i]
+  std::vector<double> row_total;    ///< per table row j, the sum of its conditional
+  double outside = 0, spot = 0;     ///< masses outside and inside the spot (one quadrant)
+  double p_out() const { return outside + spot > 0 ? outside / (outside + spot) : 0.0; }
+  /// The sampled density per unit area of direction sum s over the whole plane (the four
+  /// quadrants equally likely), normalised to 1; 0 outside the table. (Uniform in t within a
+  /// sub-cell, it is integrably infinite on the axes s_x = 0, s_y = 0: integrate with
+  /// probability().)
+  double density(double s_x, double s_y) const;
+  /// The probability of the rectangle [sx0, sx1] x [sy0, sy1] of direction sums (any signs).
+  double probability(double sx0, double sx1, double sy0, double sy1) const;
+};
+inline constexpr int kDiffractionSub = 8;
+DiffractionSampler diffraction_sampler(const DiffractionTable& t, int tile_x, int tile_y,
+                                       int channel, double spot_s, int sub = kDiffractionSub);
+
+/// The gap table's sampling image (layout: diffraction_sampling.h), RGB.
+struct DiffractionSampling {
+  int width = 0, height = 0;
+  std::vector<float> rgb;  ///< rows from the bottom
+  std::vector<std::array<float, 3>> p_out;  ///< per tile (ty tiles_x + tx), per channel
+};
+DiffractionSampling diffraction_sampling_table(const DiffractionTable& gap, double spot_s);
+
+/// A table image (tiles as diffraction_gap_table lays them out) back as a DiffractionTable:
+/// `size` texels per tile side; throws std::runtime_error when the image does not tile.
+DiffractionTable diffraction_table_from_rgb(int width, int height, const float* rgb, int size);
 
 }  // namespace loom

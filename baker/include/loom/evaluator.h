@@ -21,6 +21,8 @@ struct SurfacePoint {
   float k_rs = 0, k_ts = 0;
   float roughness = 0.25f, thickness = 1, blend = 0.5f, ior = 1.5f;
   float horizon[LOOM_HORIZON_DIRS] = {};
+  float u = 0, v = 0;    ///< where in the repeat, [0, 1) (v from the bottom)
+  float du = 0, dv = 0;  ///< the footprint around (u, v) (a texel; 0 for a point)
 };
 
 /// Bilinear, periodic sample at (u, v) (v from the bottom, any real value: wrapped), with the

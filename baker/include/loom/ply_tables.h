@@ -43,9 +43,10 @@ struct PlyTables {
   double sim_seconds = 0, fit_seconds = 0;
 };
 
-/// Simulate the yarn's ply and fit its tables at the given quality.
+/// Simulate the yarn's ply and fit its tables at the given quality; `multi_ply` false skips
+/// Eq. S.13-S.19 for yarns of several plies (components.multi_ply).
 PlyTables bake_ply_tables(const YarnSpec& y, Quality q, const ProgressFn& progress = {},
-                          const std::string& stage = "plysim");
+                          const std::string& stage = "plysim", bool multi_ply = true);
 
 /// Node and scale images of a table (layout above).
 Image asg_nodes_image(const AsgTable& t);
@@ -53,8 +54,16 @@ Image asg_scale_image(const AsgTable& t);
 Image asg_residual_image(const AsgTable& t);
 /// The manifest entry of a yarn's tables (grids, lobe counts, errors, simulation settings).
 nlohmann::json ply_tables_manifest(const PlyTables& t, const std::string& yarn);
+/// The ply's sigma -> energy curve in a yarn's manifest entry (raywave.yarns.<yarn>.absorption.
+/// curve); empty when the entry has none; throws std::runtime_error naming what is malformed.
+AbsorptionCurve absorption_curve_from_manifest(const nlohmann::json& entry,
+                                               const std::string& yarn);
+/// The curve of the double layer (warp and weft): the mean of the two yarns' curves in the
+/// manifest's "raywave" object.
+AbsorptionCurve layer_absorption_curve(const nlohmann::json& raywave);
 /// Rebuild a table from its images and manifest entry ("high" or "refl"); throws
 /// std::runtime_error naming what is inconsistent. Without a residual image the table has none.
+/// The entry's absorption curve, if any, becomes the table's interpolation variable.
 AsgTable asg_table_from_images(const nlohmann::json& entry, const std::string& which,
                                const Image& nodes, const Image* scale,
                                const Image* residual = nullptr);

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "loom/asg_fit.h"
+#include "loom/diffraction_tables.h"
 #include "loom/double_layer.h"
 #include "loom/evaluator.h"
 #include "loom/ply_tables.h"
@@ -45,9 +46,10 @@ struct DoubleLayerGrid {
   Image table;  ///< B_t, F_t, B_total, F_total; column phi bin, row k theta_count + theta bin
   int theta_count = 0, phi_count = 0;
   std::vector<double> sigmas;
+  AbsorptionCurve absorption;  ///< interpolation variable between levels (absorption_curve.h)
 };
 /// Eq. S.20's factors at direction xi (unit, xi.z >= 0) and absorption sigma (1/mm): bilinear in
-/// the (theta, phi) bin centres (phi periodic, theta clamped), linear in sigma between levels.
+/// the (theta, phi) bin centres (phi periodic, theta clamped), between levels by sigma_interval.
 DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const shading::vec3& xi,
                                    double sigma);
 /// layer_factors_<side>: the three RGB blocks of double_layer_factors.h at sigma_rgb.
@@ -56,6 +58,18 @@ Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>&
 /// The microfacet albedo LUT (raywave_lobes.h): E(cos(N, V), alpha) of Cycles' isotropic Beckmann
 /// reflection closure (F = 1), by quadrature in the half-vector domain with `n` x 4n points.
 Image microfacet_albedo_image(int n = 48);
+
+/// Gap diffraction of a ray-wave atlas (osl/include/loom/diffraction_sampling.h): the gap table,
+/// its cells (the distribution the shaders sample) and the sampling image.
+struct GapDiffraction {
+  bool present = false;            ///< false: delta transmission (no gap table)
+  DiffractionTable table;          ///< D_c(s) per tile (diffraction_tables.h)
+  std::vector<DiffractionSampler> sampler;  ///< per tile and channel: [tile 3 + c]
+  const Image* sampling = nullptr;      ///< diffraction_gap_sampling
+  double spot_s = 0;
+  float gap_fraction[2] = {0, 0};  ///< gap width over yarn spacing along x, y
+  int yarns[2] = {1, 1};           ///< yarns per repeat stacked along x (weft), y (warp)
+};
 
 /// Everything the ray-wave BSDF reads from a loaded atlas.
 struct RaywaveData {
@@ -67,13 +81,16 @@ struct RaywaveData {
   const Image *nodes_high[2] = {}, *nodes_refl[2] = {}, *tint[2] = {}, *factors[2] = {};
   const Image* residual[2] = {};  ///< ply_residual_<yarn>
   const Image* microfacet_albedo = nullptr;
+  GapDiffraction diffraction;
 };
 /// Throws std::runtime_error naming what is missing when the atlas is not a ray-wave atlas with
 /// render tables.
 RaywaveData load_raywave(const Atlas& a);
 
 /// One closure of the mixture (for tests and reports): kind 0 Beckmann reflection, 1 translucent,
-/// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA), 3 diffuse.
+/// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA), 3 diffuse, 4 transparent (the open gaps' delta
+/// transmission, less what the gap diffraction samples; the sampled diffraction lobes, which
+/// change with every shading sample, are evaluated in expectation and not listed).
 struct RaywaveClosure {
   int kind = 0;
   shading::vec3 N, T;
@@ -105,6 +122,18 @@ std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, s
 /// repeats shows per unit irradiance (the node-mode parity test compares with it).
 std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, shading::vec3 wi,
                                           shading::vec3 wo, Evaluator e);
+
+/// Directional albedo of the cloth seen from wo: the energy it sends back to wo's side
+/// (reflect) and through to the other side (transmit) per unit irradiance, RGB, mean over
+/// `texels` texels of the repeat, by midpoint quadrature over a sphere of light directions
+/// (sphere_n x 2 sphere_n). Ray-wave atlases: the model or the closure mixture; delta
+/// transmission through open gaps (transparent()) is counted in `delta`, which has no lobe.
+struct DirectionalAlbedo {
+  std::array<double, 3> reflect{0, 0, 0}, transmit{0, 0, 0};
+  double delta = 0;  ///< mean open fraction (straight-through transmission)
+};
+DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, shading::vec3 wo,
+                                 Evaluator e, int texels = 64, int sphere_n = 96);
 
 /// The closure-mapping error of mapping_error() (evaluator.h) for a ray-wave atlas: relative L1
 /// over the sphere of light directions of the eval quantity, green channel.

@@ -16,4 +16,5 @@ namespace loom::shading {
 #include "../../../osl/include/loom/speckle_noise.h"
 #include "../../../osl/include/loom/raywave_lobes.h"
 #include "../../../osl/include/loom/double_layer_factors.h"
+#include "../../../osl/include/loom/diffraction_sampling.h"
 }  // namespace loom::shading

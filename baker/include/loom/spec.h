@@ -68,6 +68,12 @@ struct ComponentSpec {
   bool transmission = true;  ///< diffuse + specular transmission through yarns
   bool gaps = true;          ///< delta transmission through open gaps between yarns
   bool shadowing = true;     ///< ply/yarn shadowing-masking (horizon visibility)
+  /// Ray-wave tier: multi-ply scattering (Eq. S.13-S.19) for yarns of several plies; false
+  /// treats the yarn's plies as one ply (the supplement's "multi-ply off").
+  bool multi_ply = true;
+  /// Ray-wave tier: double-layer scattering (Eq. S.20-S.22); false bakes no double-layer
+  /// factors and renders one layer (B_total / B_t = F_total / F_t = 1, no diffuse part).
+  bool double_layer = true;
 };
 
 /// Wave optics of the ray-wave tier (ray-wave supplement, sections 4 and 5).
