@@ -302,7 +302,8 @@ struct RaywavePoint::Impl {
 
 namespace {
 
-RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e) {
+RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e,
+                           bool gap_diffraction) {
   RaywavePoint::Impl q;
   q.e = e;
   if (!(std::isfinite(wo.x) && std::isfinite(wo.y) && std::isfinite(wo.z)) || wo.z == 0.0f)
@@ -322,7 +323,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
   std::array<double, 3> sig_layers;
   for (int c = 0; c < 3; ++c)
     sig_layers[size_t(c)] = 0.5 * (d.sigma_rgb[0][size_t(c)] + d.sigma_rgb[1][size_t(c)]);
-  if (d.diffraction.present && p.gap > 0) {
+  if (gap_diffraction && d.diffraction.present && p.gap > 0) {
     const GapDiffraction& g = d.diffraction;
     q.dif = &g;
     q.albedo_lut = d.microfacet_albedo;
@@ -607,8 +608,9 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
 
 }  // namespace
 
-RaywavePoint::RaywavePoint(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e)
-    : impl_(std::make_shared<const Impl>(prepare(d, p, wo, e))) {}
+RaywavePoint::RaywavePoint(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e,
+                           bool gap_diffraction)
+    : impl_(std::make_shared<const Impl>(prepare(d, p, wo, e, gap_diffraction))) {}
 
 std::array<float, 3> RaywavePoint::eval(vec3 wi) const { return eval_prepared(*impl_, wi); }
 
@@ -635,7 +637,8 @@ std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, 
 MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels, int views,
                                    int sphere_n) {
   return mapping_error_loop(a, texels, views, sphere_n, [&d](const SurfacePoint& p, vec3 v) {
-    const RaywavePoint pm(d, p, v, Evaluator::Model), pc(d, p, v, Evaluator::Closures);
+    // (The gaps' diffraction is too narrow for the sphere of directions: left out of both.)
+    const RaywavePoint pm(d, p, v, Evaluator::Model, false), pc(d, p, v, Evaluator::Closures, false);
     return MappingPair([pm, pc](vec3 l) {  // eval is already BSDF times cosine
       return std::pair<float, float>(pm.eval(l)[1], pc.eval(l)[1]);
     });
@@ -656,7 +659,7 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
     const int ix = int((idx % side + 0.5) / side * ref.width);
     const int iy = int((idx / side + 0.5) / side * ref.height);
     const SurfacePoint p = texel_surface(a, ix, iy);
-    const RaywavePoint pt(d, p, wo, e);
+    const RaywavePoint pt(d, p, wo, e, false);
     DirectionalAlbedo& r = per[size_t(idx)];
     for (int i = 0; i < sphere_n; ++i)
       for (int j = 0; j < 2 * sphere_n; ++j) {
@@ -667,7 +670,10 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
         auto& acc = (z > 0) == (wo.z > 0) ? r.reflect : r.transmit;
         for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
       }
-    r.delta = std::clamp(p.gap, 0.0f, 1.0f);
+    r.gap = std::clamp(p.gap, 0.0f, 1.0f);
+    for (const RaywaveClosure& cl : RaywavePoint(d, p, wo, Evaluator::Closures).closures())
+      if (cl.kind == 4)
+        for (int c = 0; c < 3; ++c) r.diffracted[size_t(c)] = r.gap - cl.weight[size_t(c)];
   });
   DirectionalAlbedo out;
   for (const DirectionalAlbedo& r : per) {
@@ -675,7 +681,8 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
       out.reflect[size_t(c)] += r.reflect[size_t(c)] / double(per.size());
       out.transmit[size_t(c)] += r.transmit[size_t(c)] / double(per.size());
     }
-    out.delta += r.delta / double(per.size());
+    out.gap += r.gap / double(per.size());
+    for (int c = 0; c < 3; ++c) out.diffracted[size_t(c)] += r.diffracted[size_t(c)] / double(per.size());
   }
   return out;
 }

@@ -401,7 +401,8 @@ int main(int argc, char** argv) {
           albedo_texels);
       std::cout << json{{"reflect", r.reflect},
                         {"transmit", r.transmit},
-                        {"delta_transmit", r.delta},
+                        {"gap_transmit", r.gap},
+                        {"gap_diffracted", r.diffracted},
                         {"evaluator", albedo_evaluator},
                         {"wo", {vo.x, vo.y, vo.z}}}
                        .dump()

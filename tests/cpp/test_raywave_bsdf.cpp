@@ -540,8 +540,10 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
       EXPECT_GE(a["reflect"][c].get<double>(), 0.0);
       EXPECT_GE(a["transmit"][c].get<double>(), 0.0);
       EXPECT_LT(a["reflect"][c].get<double>() + a["transmit"][c].get<double>() +
-                    a["delta_transmit"].get<double>(),
+                    a["gap_transmit"].get<double>(),
                 1.0);
+      EXPECT_GE(a["gap_diffracted"][c].get<double>(), 0.0);
+      EXPECT_LE(a["gap_diffracted"][c].get<double>(), a["gap_transmit"].get<double>() + 1e-9);
     }
     total[i++] = a["reflect"][1].get<double>() + a["transmit"][1].get<double>();
   }

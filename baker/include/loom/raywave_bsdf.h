@@ -102,7 +102,10 @@ struct RaywaveClosure {
 /// and the double-layer factors (Model), or the closure mixture (Closures). Cheap to copy.
 class RaywavePoint {
  public:
-  RaywavePoint(const RaywaveData& d, const SurfacePoint& p, shading::vec3 wo, Evaluator e);
+  /// `gap_diffraction` false leaves the open gaps' diffraction out (delta transmission only,
+  /// which eval() never returns): for quadratures over the sphere, which cannot resolve it.
+  RaywavePoint(const RaywaveData& d, const SurfacePoint& p, shading::vec3 wo, Evaluator e,
+               bool gap_diffraction = true);
   /// f times cosine (header comment), RGB, for light from wi.
   std::array<float, 3> eval(shading::vec3 wi) const;
   /// The mixture the shaders emit (Closures; empty for Model).
@@ -126,11 +129,13 @@ std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, 
 /// Directional albedo of the cloth seen from wo: the energy it sends back to wo's side
 /// (reflect) and through to the other side (transmit) per unit irradiance, RGB, mean over
 /// `texels` texels of the repeat, by midpoint quadrature over a sphere of light directions
-/// (sphere_n x 2 sphere_n). Ray-wave atlases: the model or the closure mixture; delta
-/// transmission through open gaps (transparent()) is counted in `delta`, which has no lobe.
+/// (sphere_n x 2 sphere_n). Ray-wave atlases: the model or the closure mixture. The light through
+/// the open gaps (too narrow for the quadrature) is counted apart: `gap`, and the share of it
+/// that the closures send into diffraction lobes rather than transparent() (diffraction_sampling.h).
 struct DirectionalAlbedo {
-  std::array<double, 3> reflect{0, 0, 0}, transmit{0, 0, 0};
-  double delta = 0;  ///< mean open fraction (straight-through transmission)
+  std::array<double, 3> reflect{0, 0, 0}, transmit{0, 0, 0};  ///< the yarns' scattering
+  double gap = 0;  ///< mean open fraction: what the gaps pass (delta or diffracted)
+  std::array<double, 3> diffracted{0, 0, 0};  ///< of it, what the closures diffract (lobes)
 };
 DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, shading::vec3 wo,
                                  Evaluator e, int texels = 64, int sphere_n = 96);
