@@ -57,7 +57,8 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_INTEGRAL_WIDTHS", "LOOM_ASG_MU_MAX",
                       "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
                       "LOOM_DIFFRACTION_ICDF_SIZE", "LOOM_DIFFRACTION_KERNEL_RAD",
-                      "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES")
+                      "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES",
+                      "LOOM_NOISE_SEGMENTS_PER_REPEAT", "LOOM_NOISE_HASH_MOD", "LOOM_NOISE_LEVELS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
@@ -66,8 +67,9 @@ TRANSCRIBED_FROM = {
     "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
-    "include/loom/diffraction_sampling.h": "a22555fa222b7c86",
-    "loom_cloth_raywave.osl": "5ed07738b0ff4340",
+    "include/loom/diffraction_sampling.h": "4552302033af31ad",
+    "include/loom/speckle_noise.h": "db12339f3a287d00",
+    "loom_cloth_raywave.osl": "bd89159b48c5dfee",
 }
 
 
@@ -349,15 +351,20 @@ def diffraction_gap_offset(coord, yarns, gap_fraction):
     return min_(fabs(c) * (2.0 / max(gap_fraction, 1e-6)), 1.0)
 
 
+def diffraction_tile_coord(o, n):
+    """diffraction_sampling.h: diffraction_tile_coord(o, n) = (n - 1) (1 - sqrt(1 - clamp(o, 0, 1)))
+    (NaN: 0, which Blender's Clamp node already gives)."""
+    return float(n - 1) * (1.0 - sqrt(1.0 - clamp(o, 0.0, 1.0)))
+
+
 def diffraction_tile_pick(o, n, r):
     """diffraction_sampling.h: diffraction_tile_pick(o, n, r).
 
-        n < 2: 0;  f = clamp(o, 0, 1) (n - 1) (NaN: 0);  i = floor(f);  i >= n - 1: n - 1
-        r < f - i: i + 1;  else i
-    (Blender's Clamp node already gives 0 for NaN.)"""
+        n < 2: 0;  f = diffraction_tile_coord(o, n);  i = floor(f);  i >= n - 1: n - 1
+        r < f - i: i + 1;  else i"""
     if n < 2:
         return 0.0
-    f = clamp(o, 0.0, 1.0) * float(n - 1)
+    f = diffraction_tile_coord(o, n)
     i = floor(f)
     return select(i > n - 1.5, float(n - 1), select(r < f - i, i + 1.0, i))
 
@@ -424,6 +431,115 @@ def diffraction_lobe_closure(V_, L, K):
     mu = 0.5 / (K["LOOM_DIFFRACTION_KERNEL_RAD"] ** 2)
     N, mag, ok = asg_lobe_refraction_frame(V_, L, K)
     return N, asg_refraction_alpha(mu, mu, mag, N, L, K), ok
+
+
+# ======================================================================= speckle_noise.h
+
+
+def _mod(x, y):
+    """OSL's mod(x, y) = x - y floor(x / y) (y a positive constant)."""
+    return x - floor(x * (1.0 / y)) * y
+
+
+def noise_hash_round(x, a, c, K):
+    """speckle_noise.h: noise_hash_round(x, a, c) = mod(a mod(x, p) + c, p), p = HASH_MOD."""
+    p = K["LOOM_NOISE_HASH_MOD"]
+    return _mod(_mod(x, p) * a + c, p)
+
+
+def noise_hash(ply_id, segment, K):
+    """speckle_noise.h: noise_hash(ply_id, segment) (exact integers in float, as in OSL).
+
+        a = floor(clamp(id, 0, 1) 4095);  b = mod(floor(segment), 4096)
+        h = round(a 16 + mod(b, 16), 251, 17);  h = round(h + floor(b / 16) 97, 223, 41)
+        h = round(h, 199, 7);  h = round(h, 241, 113);  h / HASH_MOD"""
+    a = floor(clamp(ply_id, 0.0, 1.0) * 4095.0)
+    b = _mod(floor(segment), 4096.0)
+    h = noise_hash_round(a * 16.0 + _mod(b, 16.0), 251.0, 17.0, K)
+    h = noise_hash_round(h + floor(b * (1.0 / 16.0)) * 97.0, 223.0, 41.0, K)
+    h = noise_hash_round(h, 199.0, 7.0, K)
+    h = noise_hash_round(h, 241.0, 113.0, K)
+    return h * (1.0 / K["LOOM_NOISE_HASH_MOD"])
+
+
+def noise_pick(ply_id, along, instances, K):
+    """speckle_noise.h: noise_pick(ply_id, along, instances, instance, phi_shift) ->
+    (instance, phi_shift).
+
+        h = noise_hash(id, floor(clamp(along, 0, 1) SEGMENTS));  x = h max(n, 1)
+        instance = min(floor(x), max(n, 1) - 1);  phi_shift = x - instance"""
+    n = max(int(instances), 1)
+    h = noise_hash(ply_id, floor(clamp(along, 0.0, 1.0) * K["LOOM_NOISE_SEGMENTS_PER_REPEAT"]), K)
+    x = h * float(n)
+    inst = min_(floor(x), float(n - 1))
+    return inst, x - inst
+
+
+def noise_memory_effect_direction(wi, wo):
+    """speckle_noise.h: noise_memory_effect_direction(wi, wo) (Eq. S.40).
+
+        s = normalize(wi) + normalize(wo);  l = |s|;  l <= 1e-6: normalize(wo)
+        H = s / l;  2 (n.H) H - n,  n = (0, 1, 0)"""
+    s = normalize(wi) + normalize(wo)
+    l = length(s)
+    H = s / l
+    mirrored = H * (2.0 * H.y) - vec(0.0, 1.0, 0.0)
+    return select(l > 1e-6, mirrored, normalize(wo))
+
+
+def noise_tile_uv(w, phi_shift, instance, instances):
+    """speckle_noise.h: noise_tile_uv(w, phi_shift, instance, instances, u, v) -> (u, v), with
+    noise_angles (theta = asin(clamp(n.z, -1, 1)), phi = atan2(n.y, n.x), n = normalize(w)).
+
+        u = mod((phi + pi) / (2 pi) + phi_shift, 1);  t = clamp((theta + pi/2) / pi, 0, 1)
+        v = (instance + t) / max(instances, 1)"""
+    n = normalize(w)
+    theta = asin(clamp(n.z, -1.0, 1.0))
+    phi = atan2(n.y, n.x)
+    x = (phi + math.pi) * (1.0 / (2.0 * math.pi)) + phi_shift
+    u = x - floor(x)
+    t = clamp((theta + 0.5 * math.pi) * (1.0 / math.pi), 0.0, 1.0)
+    return u, (instance + t) * (1.0 / max(int(instances), 1))
+
+
+def noise_level_blur(l):
+    """speckle_noise.h: noise_level_blur(l): 0, 0.015, 0.05, 0.15 rad."""
+    return (0.0, 0.015, 0.05, 0.15)[min(max(l, 0), 3)]
+
+
+def noise_level_coord(sigma, K):
+    """speckle_noise.h: noise_level_coord(sigma): linear in sigma between the levels' blurs,
+    clamped to [0, LEVELS - 1] (sigma >= the last blur: LEVELS - 1)."""
+    levels = int(K["LOOM_NOISE_LEVELS"])
+    c = 0.0
+    for l in range(levels - 1):
+        a, b_ = noise_level_blur(l), noise_level_blur(l + 1)
+        inside = (1.0 - (sigma < a)) * (sigma < b_)
+        c = c + select(inside, l + (sigma - a) * (1.0 / (b_ - a)), 0.0)
+    return select(sigma < noise_level_blur(levels - 1), c, float(levels - 1))
+
+
+def noise_lobe_sigma(mu1, mu2):
+    """speckle_noise.h: noise_lobe_sigma(mu1, mu2) = 1 / sqrt(2 sqrt(m1 m2)),
+    m = clamp(mu, 1e-6, 1e12)."""
+    m = sqrt(clamp(mu1, 1e-6, 1e12) * clamp(mu2, 1e-6, 1e12))
+    return 1.0 / sqrt(2.0 * m)
+
+
+def noise_lobe_uv(z, wi, refl, mu1, mu2, instance, phi_shift, instances, K):
+    """speckle_noise.h: noise_lobe_uv(z, wi, refl, mu1, mu2, instance, phi_shift, instances,
+    u, v0, v1, t) -> (u, v0, v1, t).
+
+        w = refl ? noise_memory_effect_direction(wi, z) : z;  (u, v) = noise_tile_uv(w, ...)
+        c = noise_level_coord(noise_lobe_sigma(mu1, mu2));  l = min(floor(c), LEVELS - 2)
+        t = c - l;  v0 = (l + v) / LEVELS;  v1 = (l + 1 + v) / LEVELS"""
+    levels = int(K["LOOM_NOISE_LEVELS"])
+    w = noise_memory_effect_direction(wi, z) if refl else z
+    u, v = noise_tile_uv(w, phi_shift, instance, instances)
+    c = noise_level_coord(noise_lobe_sigma(mu1, mu2), K)
+    l = min_(floor(c), float(levels - 2))
+    v = clamp(v, 0.0, 1.0)
+    return u, (l + v) * (1.0 / levels), (l + 1.0 + v) * (1.0 / levels), c - l
 
 
 # ======================================================================= double_layer_factors.h
@@ -516,6 +632,17 @@ def _diffraction(manifest: dict) -> dict | None:
             "warp_yarns": int(manifest["repeat"]["warp_yarns"])}
 
 
+def _noise(manifest: dict) -> dict | None:
+    """The speckle noise tiles (speckle_noise.h), or None (wave.noise off). Raises KeyError when
+    the tiles come without their blur levels (an older loom-bake)."""
+    nz = manifest["raywave"].get("noise", {})
+    files = nz.get("files", {})
+    if "refl" not in files:
+        return None
+    return {"refl": files["refl"], "high": files["high"], "instances": int(nz["instances"]),
+            "theta_count": int(nz["theta_count"]), "levels": int(nz["levels"])}
+
+
 def atlas_problem(manifest: dict) -> str | None:
     """None if node mode (and the OSL shader) can read this ray-wave atlas, else why not."""
     try:
@@ -534,6 +661,9 @@ def atlas_problem(manifest: dict) -> str | None:
         dif = _diffraction(manifest)
         if dif:
             needed.add(dif["file"])
+        nz = _noise(manifest)
+        if nz:
+            needed |= {nz["refl"], nz["high"]}
     except (KeyError, TypeError) as exc:
         return (f"not a ray-wave atlas with render tables (manifest lacks {exc}): re-bake it "
                 f"with this version of loom-bake")
@@ -568,6 +698,16 @@ def atlas_problem(manifest: dict) -> str | None:
         got = list(textures[dif["file"]].get("size", []))
         if got != want:
             return f"{dif['file']} is {got}, the diffraction tables say {want}: re-bake the atlas"
+    nz = _noise(manifest)
+    if nz:
+        if nz["levels"] != int(K["LOOM_NOISE_LEVELS"]):
+            return (f"its noise tiles have {nz['levels']} blur levels, the shaders read "
+                    f"{int(K['LOOM_NOISE_LEVELS'])}: re-bake the atlas")
+        want = [2 * nz["theta_count"], nz["theta_count"] * nz["instances"] * nz["levels"]]
+        for name in (nz["refl"], nz["high"]):
+            got = list(textures[name].get("size", []))
+            if got != want:
+                return f"{name} is {got}, the noise settings say {want}: re-bake the atlas"
     return None
 
 
@@ -590,6 +730,10 @@ def osl_parameters(manifest: dict) -> tuple[dict, dict]:
               "theta_count": g["m"], "h_count": g["n"], "theta_min": g["theta_min"],
               "theta_max": g["theta_max"], "layer_theta_count": g["layer_theta_count"],
               "layer_phi_count": g["layer_phi_count"], "double_layer_blend": g["blend"]}
+    nz = _noise(manifest)
+    if nz:  # (without: the shader's defaults, empty names, give no noise)
+        tex["noise_refl"], tex["noise_high"] = nz["refl"], nz["high"]
+        values["noise_instances"] = nz["instances"]
     dif = _diffraction(manifest)
     if dif:  # (without: the shader's defaults, diffraction_tiles_x = 0, give delta transmission)
         tex["diffraction_gap_sampling"] = dif["file"]
@@ -614,7 +758,8 @@ LOBE_INPUTS = (
     ("B", "NodeSocketVector"), ("N", "NodeSocketVector"), ("back", "NodeSocketFloat"),
     *((f"hor{k}", "NodeSocketFloat") for k in range(8)), ("open", "NodeSocketFloat"),
     ("vis_v", "NodeSocketFloat"), ("rho_b", "NodeSocketColor"), ("rho_f", "NodeSocketColor"),
-    ("s", "NodeSocketFloat"))
+    ("s", "NodeSocketFloat"), ("theta_i", "NodeSocketFloat"), ("noise_instance", "NodeSocketFloat"),
+    ("noise_shift", "NodeSocketFloat"))
 
 
 def _new_group(name: str, inputs, outputs, description: str):
@@ -631,7 +776,8 @@ def _new_group(name: str, inputs, outputs, description: str):
     return group
 
 
-def build_lobe_group(name: str, albedo_image, K):
+def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
+                     noise_instances=1):
     """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closure, the
     microfacet albedo look-up, the light-side visibility, raywave_lobe_weight and the lobe's
     Glossy, Refraction and Translucent BSDFs (the weight of the kinds not picked is 0). Built
@@ -642,7 +788,11 @@ def build_lobe_group(name: str, albedo_image, K):
     (OSL sums them in one translucent() term): a value that several closures read stays on
     Cycles' SVM stack (255 floats) until the last of them is compiled, so one Translucent BSDF
     fed by every lobe kept every lobe's intermediate values alive and overflowed the stack at
-    final quality (6 lobes: "out of SVM stack space", the material renders black)."""
+    final quality (6 lobes: "out of SVM stack space", the material renders black).
+
+    With ``noise_image`` (the atlas's noise tile for f_refl lobes if ``refl``, else f_high's),
+    each lobe's weights are scaled by the noise averaged over the lobe (speckle_noise.h,
+    noise_lobe_uv): two look-ups, one per blur level, blended."""
     group = _new_group(name, LOBE_INPUTS, (("BSDF", "NodeSocketShader"),),
                        "Loom ray-wave: one fitted lobe as Cycles closures (raywave_lobes.h)")
     b = Builder(group)
@@ -671,6 +821,24 @@ def build_lobe_group(name: str, albedo_image, K):
         w_refl, w_fwd = raywave_lobe_weight(is_refl, is_refr, integral, albedo, i["tint"],
                                             i["open"], i["vis_v"], vis_z, i["rho_b"],
                                             i["rho_f"], i["s"], K)
+    if noise_image is not None:
+        with b.block("speckle_noise.h: noise_lobe_uv, the noise at two blur levels (Eq. S.39)"):
+            _, _, lz = asg_frame(i["p0"].x, i["p0"].y, i["p0"].z)
+            wi = vec(0.0, cos(i["theta_i"]), sin(i["theta_i"]))
+            nu, nv0, nv1, nt = noise_lobe_uv(lz, wi, refl, i["mu1"], i["p1"].x,
+                                             i["noise_instance"], i["noise_shift"],
+                                             noise_instances, K)
+            looked = []
+            for v_ in (nv0, nv1):
+                node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                             label="noise_refl" if refl else "noise_high")
+                node.image = noise_image
+                b.link(vec(nu, v_, 0.0), node.inputs["Vector"])
+                looked.append(b.vector_socket(node.outputs["Color"]))
+            nz = b.label(looked[0] * (1.0 - nt) + looked[1] * nt, "noise")
+            w_refl = w_refl * nz
+            w_fwd = w_fwd * nz
+    with b.block("closures"):
         T, B, Nw = i["T"], i["B"], i["N"]
         nw = normalize(T * Nl.x + B * Nl.y + Nw * Nl.z)
         tw = normalize(T * Tl.x + B * Tl.y + Nw * Tl.z)
@@ -729,8 +897,17 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             images[tex_name] = node_mode.load_atlas_image(atlas_dir, manifest, tex_name, label)
         return images[tex_name]
 
-    lobe_group = build_lobe_group(f"{name} lobe", image(rw["shading"]["microfacet_albedo"]), K)
-    lobe_group["loom_atlas"] = os.path.abspath(atlas_dir)
+    albedo_img = image(rw["shading"]["microfacet_albedo"])
+    nz = _noise(manifest)
+    if nz:  # f_refl and f_high lobes read different noise tiles (speckle_noise.h)
+        lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, K,
+                                              image(nz[part]), part == "refl", nz["instances"])
+                       for part in ("refl", "high")}
+    else:
+        one = build_lobe_group(f"{name} lobe", albedo_img, K)
+        lobe_groups = {"refl": one, "high": one}
+    for lg in lobe_groups.values():
+        lg["loom_atlas"] = os.path.abspath(atlas_dir)
     group = _new_group(name, (("Scale", "NodeSocketFloat"),), (("BSDF", "NodeSocketShader"),),
                        f"Loom ray-wave cloth from atlas {os.path.abspath(atlas_dir)}")
     s_in = group.interface.items_tree["Scale"]
@@ -794,6 +971,11 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         open_ = b.label(1.0 - clamp(a_info, 0.0, 1.0), "open")
         vis_v = b.label(select(back, 1.0, node_mode.horizon_visibility(V_, hor, K)), "vis_v")
         weft = b.label(c_info.x > 1.5, "weft (yarn_info.r > 1.5)")
+        if nz:
+            noise_inst, noise_shift = noise_pick(c_info.z, c_info.y, nz["instances"], K)
+            noise_inst = b.label(noise_inst, "noise instance (noise_pick)")
+        else:
+            noise_inst, noise_shift = 0.0, 0.0
 
     # ---------------------------------------------------------------- double layer
     with b.block("double_layer_factors.h: rho_b, rho_f, F_total at xi = V"):
@@ -841,12 +1023,14 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             with b.block(f"loom_lobes: {part_name} lobe {l} (asg_node_uv, asg_tint_uv)"):
                 p0, mu1, p1, tintc = lobe_texels(part_name, l, lobes)
                 node = b.new("ShaderNodeGroup", label=f"{part_name} lobe {l}")
-                node.node_tree = lobe_group
+                node.node_tree = lobe_groups[part_name]
                 node.hide = False
                 args = {"p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "V": V_, "xp": xp,
                         "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
                         **{f"hor{k}": hor[k] for k in range(8)}, "open": open_,
-                        "vis_v": vis_v, "rho_b": rho_b, "rho_f": rho_f, "s": g["blend"]}
+                        "vis_v": vis_v, "rho_b": rho_b, "rho_f": rho_f, "s": g["blend"],
+                        "theta_i": theta_i, "noise_instance": noise_inst,
+                        "noise_shift": noise_shift}
                 for n, _kind in LOBE_INPUTS:
                     b.link(args[n], node.inputs[n])
                 lobe_outputs.append(node)

@@ -490,8 +490,9 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
       raywave = {{"status", "ply tables (Eq. S.1-S.12, multi-ply S.13-S.19) and double-layer "
                             "factors (S.20), aperture diffraction (S.34, S.35), speckle noise tiles "
                             "(S.37, S.38), absorption spectra from the yarn colours (S.42) and the "
-                            "render tables at those colours baked; shading evaluates the lobes and "
-                            "double-layer factors; diffraction and noise at render time are not yet"},
+                            "render tables at those colours baked; shading evaluates the lobes, the "
+                            "double-layer factors, the gaps' diffraction and the speckle noise per "
+                            "lobe; ply-edge diffraction at render time is not yet"},
                  {"yarns", json::object()}};
       // The ply tables do not depend on the yarn colour (colour is absorption, applied through
       // the tables' levels): a weft that differs only in colour shares the warp's tables.
@@ -646,8 +647,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                        "obliquity factor), tiles of tile_size^2 texels: texel (u, r) of a tile at "
                        "|s_x| = s_max (u / (tile_size - 1))^2, |s_y| likewise with row r counted "
                        "from the bottom (v = 0) (osl/include/loom/diffraction_table.h); gap tiles: column block i, row block "
-                       "j hold the beam centre offset (i, j) / (gap_offsets - 1) * gap_um / 2 from "
-                       "the hole's centre; edge tiles: column block j holds x_w / d_cut = j / "
+                       "j hold the beam centre offset (1 - (1 - (i, j) / (gap_offsets - 1))^2) gap_um "
+                       "/ 2 from the hole's centre; edge tiles: column block j holds x_w / d_cut = j / "
                        "(edge_tiles - 1) (baker/include/loom/diffraction_tables.h)"}};
           const auto to_image = [](const DiffractionTable& t) {
             Image img(t.width(), t.height(), 3);
@@ -699,17 +700,26 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                         {"band_nm", kNoiseBandsNm},
                         {"width_um", spec.wave.speckle_width_um},
                         {"segments_per_repeat", LOOM_NOISE_SEGMENTS_PER_REPEAT},
+                        {"levels", LOOM_NOISE_LEVELS},
+                        {"level_blur_rad", [] {
+                           json b = json::array();
+                           for (int l = 0; l < LOOM_NOISE_LEVELS; ++l)
+                             b.push_back(shading::noise_level_blur(l));
+                           return b;
+                         }()},
                         {"psd", "P_1D(lambda; f) = exp(-2 (lambda f / width_um)^2), f in cycles "
                                 "per radian (baker/include/loom/speckle_noise.h)"},
                         {"files", {{"refl", "noise_refl"}, {"high", "noise_high"}}},
                         {"layout",
                          "RGB = N_2D (Eq. S.38) at band_nm; u = (phi_o + pi) / 2 pi, periodic; "
-                         "instance j's rows (from the bottom) j theta_count ... (j + 1) "
-                         "theta_count - 1 span theta_o from -pi/2 to pi/2, ply space "
-                         "(osl/include/loom/speckle_noise.h)"}};
+                         "level l, instance j's rows (from the bottom) (l instances + j) "
+                         "theta_count ... (l instances + j + 1) theta_count - 1 span theta_o "
+                         "from -pi/2 to pi/2, ply space; level 0 the tile, level l blurred by "
+                         "level_blur_rad[l] (osl/include/loom/speckle_noise.h)"}};
           int k = 0;
           for (const char* which : {"refl", "high"}) {
-            const Image tile = speckle_noise_tile(ns, spec.wave.speckle_width_um, kNoiseSeed + uint64_t(k));
+            const Image tile = speckle_noise_levels(
+                speckle_noise_tile(ns, spec.wave.speckle_width_um, kNoiseSeed + uint64_t(k)), ns);
             // Half floats: the noise needs no more than 3 significant digits, and it is the
             // largest table of the atlas.
             add_table(tile, std::string("noise_") + which, {"n_r", "n_g", "n_b"},

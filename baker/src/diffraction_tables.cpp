@@ -14,10 +14,10 @@ namespace loom {
 
 DiffractionSettings diffraction_settings(Quality q) {
   switch (q) {
-    case Quality::Draft: return {32, 20.0, 2, 4};
-    case Quality::Preview: return {48, 10.0, 3, 6};
-    case Quality::Final: return {64, 5.0, 4, 8};
-    case Quality::Reference: return {128, 2.0, 6, 12};
+    case Quality::Draft: return {32, 20.0, 3, 4};
+    case Quality::Preview: return {48, 10.0, 4, 6};
+    case Quality::Final: return {64, 5.0, 5, 8};
+    case Quality::Reference: return {128, 2.0, 7, 12};
   }
   return {};
 }
@@ -80,8 +80,12 @@ DiffractionTable diffraction_gap_table(double gx, double gy, double w0, const Sp
   DiffractionTable t = make_table(s.size, n, n);
   tbb::parallel_for(0, n * n, [&](int idx) {
     const int i = idx % n, j = idx / n;
-    const double cx = n > 1 ? double(i) / (n - 1) * 0.5 * gx : 0.0;
-    const double cy = n > 1 ? double(j) / (n - 1) * 0.5 * gy : 0.0;
+    // Offsets spaced towards the edge (diffraction_sampling.h: diffraction_tile_coord).
+    auto offset = [n](int k) {
+      const double f = n > 1 ? 1.0 - double(k) / (n - 1) : 1.0;
+      return 1.0 - f * f;
+    };
+    const double cx = offset(i) * 0.5 * gx, cy = offset(j) * 0.5 * gy;
     const Aperture A{-0.5 * gx - cx, 0.5 * gx - cx, -0.5 * gy - cy, 0.5 * gy - cy};
     fill_tile(t, i, j, A, w0, rgb);
   });

@@ -34,6 +34,23 @@ void sample_clamped(const Image& img, float s, float tv, float out[4]) {
   }
 }
 
+/// Bilinear, periodic in s (an Image Texture with REPEAT), clamped in tv.
+void sample_periodic(const Image& img, float s, float tv, float out[4]) {
+  float px = (s - std::floor(s)) * float(img.width) - 0.5f;
+  float py = std::clamp(tv * float(img.height) - 0.5f, 0.0f, float(img.height - 1));
+  if (!std::isfinite(px)) px = 0;
+  if (!std::isfinite(py)) py = 0;
+  const int x0 = int(std::floor(px)), y0 = int(py);
+  const float fx = px - float(x0), fy = py - float(y0);
+  const int xa = ((x0 % img.width) + img.width) % img.width, xb = (xa + 1) % img.width;
+  const int y1 = std::min(y0 + 1, img.height - 1);
+  for (int c = 0; c < img.channels; ++c) {
+    float a = img.px(xa, y0)[c] * (1 - fx) + img.px(xb, y0)[c] * fx;
+    float b = img.px(xa, y1)[c] * (1 - fx) + img.px(xb, y1)[c] * fx;
+    out[c] = a * (1 - fy) + b * fy;
+  }
+}
+
 /// The texel holding (s, tv) (a look-up at a texel centre).
 const float* texel_at(const Image& img, float s, float tv) {
   int x = std::clamp(int(std::floor(s * float(img.width))), 0, img.width - 1);
@@ -268,6 +285,24 @@ RaywaveData load_raywave(const Atlas& a) {
             diffraction_sampler(g.table, t % g.table.tiles_x, t / g.table.tiles_x, c, g.spot_s));
     g.present = true;
   }
+  // Speckle noise (speckle_noise.h), when the atlas has the tiles.
+  const json& nz = rw.value("noise", json());
+  if (nz.is_object() && nz.contains("files") && nz["files"].contains("refl")) {
+    if (nz.value("levels", 0) != LOOM_NOISE_LEVELS)
+      throw std::runtime_error("raywave.noise: no blur levels (an atlas from an older loom-bake: "
+                               "re-bake it)");
+    SpeckleNoise& n = d.noise;
+    n.instances = nz.value("instances", 1);
+    const int T = nz.value("theta_count", 0);
+    n.refl = &a.map(nz["files"]["refl"].get<std::string>());
+    n.high = &a.map(nz["files"]["high"].get<std::string>());
+    for (const Image* img : {n.refl, n.high})
+      if (img->width != 2 * T || img->height != T * n.instances * LOOM_NOISE_LEVELS)
+        throw std::runtime_error(fmt::format("raywave.noise: a tile is {}x{}, the manifest says "
+                                             "{}x{}", img->width, img->height, 2 * T,
+                                             T * n.instances * LOOM_NOISE_LEVELS));
+    n.present = true;
+  }
   return d;
 }
 
@@ -289,6 +324,11 @@ struct RaywavePoint::Impl {
   std::vector<std::array<float, 3>> refr_w;
   std::array<float, 3> transl_w{}, diffuse_w{};
   std::vector<RaywaveClosure> list;
+  // speckle noise (speckle_noise.h): the point's instance and rotation, the beam in ply space
+  const SpeckleNoise* noise = nullptr;
+  int noise_instance = 0;
+  float noise_shift = 0;
+  vec3 wi_ply;
   // gap diffraction (diffraction_sampling.h): the texel's open fraction and the tiles its
   // offset blends, with their weights (the probabilities of diffraction_tile_pick)
   const GapDiffraction* dif = nullptr;
@@ -317,6 +357,11 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
   float theta_i, h;
   raywave_ply_space(q.V, p.t, p.n_p, q.xp, q.yp, theta_i, h);
   q.open = 1.0f - std::clamp(p.gap, 0.0f, 1.0f);
+  if (d.noise.present) {
+    q.noise = &d.noise;
+    noise_pick(p.ply_id, p.along, d.noise.instances, q.noise_instance, q.noise_shift);
+    q.wi_ply = vec3(0.0f, std::cos(theta_i), std::sin(theta_i));
+  }
   for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) q.hor[k] = p.horizon[k];
   q.vis_v = q.back ? 1.0f : horizon_visibility(q.V, q.hor);
   const int side = q.back ? 1 : 0;
@@ -345,7 +390,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
         for (int k = 0; k < 2; ++k) {  // the expectation of diffraction_tile_pick
           lo[k] = diffraction_tile_pick(o[k], n[k], 1.0f);
           hi[k] = diffraction_tile_pick(o[k], n[k], 0.0f);
-          const float f = std::clamp(o[k], 0.0f, 1.0f) * float(std::max(n[k] - 1, 0));
+          const float f = diffraction_tile_coord(o[k], n[k]);
           w_hi[k] = hi[k] == lo[k] ? 0.0f : f - std::floor(f);
         }
         for (int ia = 0; ia < 2; ++ia)
@@ -429,6 +474,18 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
           vec3(tintc[0], tintc[1], tintc[2]), q.open, q.vis_v, vis_z,
           vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]), vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s);
       cl.weight = {w.x, w.y, w.z};
+      if (q.noise) {  // Eq. S.39 per lobe (speckle_noise.h)
+        vec3 lx, ly, lz;
+        asg_frame(a[0], a[1], a[2], lx, ly, lz);
+        const bool is_refl = tint == nullptr;
+        float u, v0, v1, t, n0[4], n1[4];
+        noise_lobe_uv(lz, q.wi_ply, is_refl ? 1 : 0, a[3], b[0], q.noise_instance, q.noise_shift,
+                      q.noise->instances, u, v0, v1, t);
+        const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
+        sample_periodic(img, u, v0, n0);
+        sample_periodic(img, u, v1, n1);
+        for (int c = 0; c < 3; ++c) cl.weight[size_t(c)] *= n0[c] * (1 - t) + n1[c] * t;
+      }
       // Cycles' closure setup raises the normal where needed (ensure_valid_specular_reflection).
       const vec3 Ng(0, 0, 1);
       if (cl.kind == 0) {
@@ -568,8 +625,19 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
   if (e == Evaluator::Model) {
     const Vec3d lp{dot(L, q.xp), dot(L, q.yp), dot(L, q.t)};
     const double fr = asg_mixture_eval(q.refl, lp);
+    // Eq. S.39: f_refl N_r(w'_o) + f_high N_h(w_o), the tiles themselves (level 0).
+    float nr[4] = {1, 1, 1, 1}, nh[4] = {1, 1, 1, 1};
+    if (q.noise) {
+      const vec3 w(float(lp.x), float(lp.y), float(lp.z));
+      float u, v;
+      noise_tile_uv(noise_memory_effect_direction(q.wi_ply, w), q.noise_shift, q.noise_instance,
+                    q.noise->instances, u, v);
+      sample_periodic(*q.noise->refl, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nr);
+      noise_tile_uv(w, q.noise_shift, q.noise_instance, q.noise->instances, u, v);
+      sample_periodic(*q.noise->high, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nh);
+    }
     for (int c = 0; c < 3; ++c) {
-      const double f = fr + asg_mixture_eval(q.high[c], lp);
+      const double f = fr * nr[c] + asg_mixture_eval(q.high[c], lp) * nh[c];
       double v;
       const double lambert = std::fabs(L.z) / M_PI;  // the residual's lobes (asg_residual.h)
       if (L.z > 0) {

@@ -1,8 +1,11 @@
 #include "loom/speckle_noise.h"
 
+#include "loom/shading.h"
+
 #include <fftw3.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <mutex>
@@ -130,6 +133,61 @@ Image speckle_noise_tile(const NoiseSettings& s, double w_um, uint64_t seed, boo
       for (int k = 0; k < H; ++k)
         for (int m = 0; m < W; ++m) out.px(m, inst * H + k)[band] = float(N[size_t(k) * W + m]);
     }
+  return out;
+}
+
+Image speckle_noise_levels(const Image& tile, const NoiseSettings& s) {
+  const int H = s.theta_count, W = 2 * s.theta_count, I = s.instances, K = LOOM_NOISE_LEVELS;
+  if (tile.width != W || tile.height != H * I || tile.channels != 3)
+    throw std::invalid_argument("speckle_noise_levels: the tile does not have the settings' size");
+  Image out(W, H * I * K, 3);
+  std::copy(tile.data.begin(), tile.data.end(), out.data.begin());  // level 0
+  const double dang = kPi / H;
+  FftwPlan plan_f, plan_b;
+  {
+    std::vector<std::complex<double>> tmp(static_cast<size_t>(W));
+    auto* r = reinterpret_cast<fftw_complex*>(tmp.data());
+    std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+    plan_f.plan = fftw_plan_dft_1d(W, r, r, FFTW_FORWARD, FFTW_ESTIMATE | FFTW_UNALIGNED);
+    plan_b.plan = fftw_plan_dft_1d(W, r, r, FFTW_BACKWARD, FFTW_ESTIMATE | FFTW_UNALIGNED);
+  }
+  for (int l = 1; l < K; ++l) {
+    const double blur = shading::noise_level_blur(l);
+    tbb::parallel_for(0, I * 3, [&](int job) {
+      const int inst = job / 3, band = job % 3;
+      std::vector<double> N(size_t(W) * H);
+      for (int k = 0; k < H; ++k)
+        for (int m = 0; m < W; ++m) N[size_t(k) * W + m] = tile.px(m, inst * H + k)[band];
+      // phi: periodic, by the row's DFT times the Gaussian's transfer function.
+      std::vector<std::complex<double>> row(static_cast<size_t>(W));
+      auto* r = reinterpret_cast<fftw_complex*>(row.data());
+      for (int k = 0; k < H; ++k) {
+        const double theta = -0.5 * kPi + (k + 0.5) * dang;
+        const double sigma = blur / (dang * std::max(std::cos(theta), 1e-3));  // texels
+        for (int m = 0; m < W; ++m) row[size_t(m)] = N[size_t(k) * W + m];
+        fftw_execute_dft(plan_f.plan, r, r);
+        for (int m = 0; m < W; ++m) {
+          const double fm = double(m <= W / 2 ? m : m - W) / W;
+          row[size_t(m)] *= std::exp(-2 * kPi * kPi * sigma * sigma * fm * fm) / W;
+        }
+        fftw_execute_dft(plan_b.plan, r, r);
+        for (int m = 0; m < W; ++m) N[size_t(k) * W + m] = row[size_t(m)].real();
+      }
+      // theta: a truncated Gaussian, edges clamped (the poles).
+      const double st = blur / dang;
+      const int rad = int(std::ceil(3 * st));
+      std::vector<double> w(size_t(2 * rad + 1));
+      double wsum = 0;
+      for (int d = -rad; d <= rad; ++d) wsum += w[size_t(d + rad)] = std::exp(-0.5 * d * d / (st * st));
+      for (int m = 0; m < W; ++m)
+        for (int k = 0; k < H; ++k) {
+          double acc = 0;
+          for (int d = -rad; d <= rad; ++d)
+            acc += w[size_t(d + rad)] * N[size_t(std::clamp(k + d, 0, H - 1)) * W + m];
+          out.px(m, (l * I + inst) * H + k)[band] = float(std::max(acc / wsum, 0.0));
+        }
+    });
+  }
   return out;
 }
 

@@ -238,7 +238,9 @@ TEST(DiffractionTables, TexelsMatchTheSpectralSumOfS35) {
     for (int u : {0, 3, 16})
       for (int r : {0, 7, 16}) {
         const int i = tile % 3, j = tile / 3;
-        const double cx = i / 2.0 * gx / 2, cy = j / 2.0 * gy / 2;
+        // Tile k holds the offset (1 - (1 - k / 2)^2) g / 2 (diffraction_tile_coord).
+        const double cx = (1 - (1 - i / 2.0) * (1 - i / 2.0)) * gx / 2;
+        const double cy = (1 - (1 - j / 2.0) * (1 - j / 2.0)) * gy / 2;
         const loom::Aperture A{-gx / 2 - cx, gx / 2 - cx, -gy / 2 - cy, gy / 2 - cy};
         const auto d = direct_D(A, w0, sh::diffraction_table_s(u / 16.0f),
                                 sh::diffraction_table_s(r / 16.0f), rgb);

@@ -109,16 +109,17 @@ void atlas_holds_the_fitted_tables_exactly() {
       for (int x = 0; x < img.width; x += 3)
         for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(img.px(x, y)[c], want->px(x, y)[c]);
   }
-  // Noise tiles: the draft tiles of the fixed seeds.
+  // Noise tiles: the draft tiles of the fixed seeds, at their blur levels (level 0 the tile).
   const json& noise = m["raywave"]["noise"];
   const auto ns = loom::noise_settings(loom::Quality::Draft);
   EXPECT_EQ(noise["theta_count"], ns.theta_count);
+  EXPECT_EQ(noise["levels"], LOOM_NOISE_LEVELS);
   int k = 0;
   for (const char* which : {"refl", "high"}) {
     const auto want = loom::speckle_noise_tile(ns, 10.0, loom::kNoiseSeed + uint64_t(k++));
     const auto& img = atlas.map(noise["files"][which].get<std::string>());
     ASSERT_EQ(img.width, want.width);
-    ASSERT_EQ(img.height, want.height);
+    ASSERT_EQ(img.height, want.height * LOOM_NOISE_LEVELS);
     // Stored as half floats: 11 significant bits (relative 2^-11), subnormals below 6.1e-5.
     for (size_t i = 0; i < want.data.size(); i += 7)
       ASSERT_NEAR(img.data[i], want.data[i], std::ldexp(std::fabs(want.data[i]), -11) + 6.1e-5);

@@ -196,3 +196,100 @@ TEST(SpeckleNoise, PlyHashIsExactUniformAndCoordinatesWrap) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(SpeckleNoise, LevelsAreTheTileBlurredOnTheSphere) {
+  // Level 0 is the tile; level l, at a texel near the equator, equals an independent
+  // brute-force Gaussian blur of the tile over the sphere (great-circle distances, texel solid
+  // angles) with noise_level_blur(l); the levels keep the unit mean and lose contrast.
+  // At the final preset's resolution (0.012 rad texels, grains 0.012 rad): the first level's
+  // blur is about one texel.
+  loom::NoiseSettings s;
+  s.theta_count = 256;
+  s.instances = 1;
+  const loom::Image tile = loom::speckle_noise_tile(s, 10.0, 77);
+  const loom::Image lv = loom::speckle_noise_levels(tile, s);
+  const int H = s.theta_count, W = 2 * H;
+  ASSERT_EQ(lv.height, H * LOOM_NOISE_LEVELS);
+  for (size_t i = 0; i < tile.data.size(); ++i) ASSERT_EQ(lv.data[i], tile.data[i]);
+  auto dir = [&](int m, int k) {
+    const double th = -0.5 * kPi + (k + 0.5) * kPi / H, ph = -kPi + (m + 0.5) * 2 * kPi / W;
+    return std::array<double, 3>{std::cos(th) * std::cos(ph), std::cos(th) * std::sin(ph),
+                                 std::sin(th)};
+  };
+  double prev_var = 1e9;
+  for (int l = 1; l < LOOM_NOISE_LEVELS; ++l) {
+    const double sigma = sh::noise_level_blur(l);
+    double worst = 0;
+    for (int probe = 0; probe < 12; ++probe) {
+      const int m = (probe * 37) % W, k = H / 2 - 4 + (probe * 5) % 8;  // |theta| < 0.25 rad
+      const auto p = dir(m, k);
+      double num = 0, den = 0;
+      for (int kk = 0; kk < H; ++kk)
+        for (int mm = 0; mm < W; ++mm) {
+          const auto q = dir(mm, kk);
+          const double c = std::clamp(p[0] * q[0] + p[1] * q[1] + p[2] * q[2], -1.0, 1.0);
+          const double a = std::acos(c);
+          if (a > 5 * sigma) continue;
+          const double th = -0.5 * kPi + (kk + 0.5) * kPi / H;
+          const double w = std::exp(-0.5 * a * a / (sigma * sigma)) * std::cos(th);
+          num += w * tile.px(mm, kk)[1], den += w;
+        }
+      worst = std::max(worst, std::fabs(lv.px(m, l * H + k)[1] - num / den));
+    }
+    // Moments of level l's block (moments() walks every row of the image it is given).
+    loom::Image block(W, H, 3);
+    std::copy(lv.data.begin() + size_t(l) * W * H * 3, lv.data.begin() + size_t(l + 1) * W * H * 3,
+              block.data.begin());
+    const Moments b = moments(block, H, 1, [](double th) { return std::fabs(th) < 1.0; });
+    std::printf("level %d (blur %.3f rad): worst difference to the sphere blur %.4f, mean %.3f, "
+                "variance %.4f\n", l, sigma, worst, b.mean, b.var);
+    EXPECT_LT(worst, 0.05);
+    EXPECT_NEAR(b.mean, 1.0, 0.1);
+    EXPECT_LT(b.var, prev_var);
+    prev_var = b.var;
+  }
+}
+
+TEST(SpeckleNoise, ALobeReadsTheLevelOfItsWidth) {
+  // The levels' own blurs map to whole levels, the coordinate grows with the width, and the
+  // look-up of a lobe lands in the two levels around it (v blocks of the stacked image).
+  for (int l = 0; l < LOOM_NOISE_LEVELS; ++l)
+    EXPECT_NEAR(sh::noise_level_coord(sh::noise_level_blur(l)), float(l), 1e-5) << l;
+  float last = -1;
+  for (float s = 0; s < 0.5f; s += 0.002f) {
+    const float c = sh::noise_level_coord(s);
+    EXPECT_GE(c, last);
+    last = c;
+  }
+  EXPECT_EQ(sh::noise_level_coord(float(NAN)), float(LOOM_NOISE_LEVELS - 1));
+  EXPECT_NEAR(sh::noise_lobe_sigma(50.0f, 50.0f), 0.1f, 1e-6);
+  float u, v0, v1, t;
+  const sh::vec3 z = sh::normalize(sh::vec3(0.3f, -0.8f, 0.2f)), wi(0, 1, 0);
+  sh::noise_lobe_uv(z, wi, 0, 1e6f, 1e6f, 0, 0.0f, 2, u, v0, v1, t);  // sharp: level 0
+  EXPECT_LT(v0, 1.0f / LOOM_NOISE_LEVELS);
+  EXPECT_LT(t, 0.1f);
+  sh::noise_lobe_uv(z, wi, 0, 1.0f, 1.0f, 1, 0.0f, 2, u, v0, v1, t);  // broad: the top levels
+  EXPECT_GT(v1, float(LOOM_NOISE_LEVELS - 1) / LOOM_NOISE_LEVELS);
+  EXPECT_NEAR(t, 1.0f, 1e-6);
+  // f_refl lobes read at the memory-effect direction: at normal incidence that is the centre.
+  float ur, vr0, vr1, tr, uh, vh0, vh1, th;
+  sh::noise_lobe_uv(z, wi, 1, 200.0f, 200.0f, 0, 0.25f, 1, ur, vr0, vr1, tr);
+  sh::noise_lobe_uv(sh::noise_memory_effect_direction(wi, z), wi, 0, 200.0f, 200.0f, 0, 0.25f, 1,
+                    uh, vh0, vh1, th);
+  EXPECT_EQ(ur, uh);
+  EXPECT_EQ(vr0, vh0);
+  // The pick is one of the instances and a rotation in [0, 1).
+  int inst;
+  float shift;
+  for (float id : {0.0f, 0.37f, 0.999f}) {
+    sh::noise_pick(id, 0.6f, 3, inst, shift);
+    EXPECT_GE(inst, 0);
+    EXPECT_LT(inst, 3);
+    EXPECT_GE(shift, 0.0f);
+    EXPECT_LT(shift, 1.0f);
+  }
+}
+
+}  // namespace

@@ -7,8 +7,9 @@
 //    g_x x g_y um (g_x = weft spacing - weft diameter, g_y = warp spacing - warp diameter). The
 //    beam centre lands anywhere in it; section 4.2 shows the position changes mainly the colour
 //    saturation, so the table holds a few offsets (c_x, c_y) of the beam centre from the hole's
-//    centre, c = j / (offsets - 1) * g / 2 (from the centre to the edge), and the shader blends
-//    between them. Absent when the yarns touch (g_x <= 0 or g_y <= 0).
+//    centre, c = (1 - (1 - j / (offsets - 1))^2) g / 2 (from the centre to the edge, denser
+//    towards the edge: osl/include/loom/diffraction_sampling.h, diffraction_tile_coord), and
+//    the shader blends between them. Absent when the yarns touch (g_x <= 0 or g_y <= 0).
 //  * ply edge: a beam centred on a ply within d_cut of its edge is clipped to
 //    [x_w, d_cut] x [-d_cut, d_cut] (section 4.3). The table depends only on x_w / d_cut and w_0,
 //    so one serves every yarn: tile j holds x_w / d_cut = j / (tiles - 1), the last tile (a

@@ -71,6 +71,14 @@ struct GapDiffraction {
   int yarns[2] = {1, 1};           ///< yarns per repeat stacked along x (weft), y (warp)
 };
 
+/// Speckle noise of a ray-wave atlas (osl/include/loom/speckle_noise.h): the two tiles at their
+/// blur levels.
+struct SpeckleNoise {
+  bool present = false;  ///< false: wave.noise off, no modulation
+  const Image *refl = nullptr, *high = nullptr;
+  int instances = 1;
+};
+
 /// Everything the ray-wave BSDF reads from a loaded atlas.
 struct RaywaveData {
   LoadedPlyTables yarn[2];                 ///< warp, weft
@@ -82,6 +90,7 @@ struct RaywaveData {
   const Image* residual[2] = {};  ///< ply_residual_<yarn>
   const Image* microfacet_albedo = nullptr;
   GapDiffraction diffraction;
+  SpeckleNoise noise;
 };
 /// Throws std::runtime_error naming what is missing when the atlas is not a ray-wave atlas with
 /// render tables.

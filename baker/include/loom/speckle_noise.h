@@ -59,4 +59,11 @@ double speckle_grain_sigma(double lambda_um, double w_um);
 /// counted from the bottom (theta = -pi/2 of instance 0). Deterministic in `seed`.
 Image speckle_noise_tile(const NoiseSettings& s, double w_um, uint64_t seed, bool prefilter = true);
 
+/// The tile at the blur levels the shaders read per lobe (osl/include/loom/speckle_noise.h:
+/// LOOM_NOISE_LEVELS, noise_level_blur), stacked in v, level 0 (the tile itself) at the bottom:
+/// each instance and band blurred by a Gaussian of noise_level_blur(l) radians of arc,
+/// periodically in phi (sigma / cos theta of phi there, so that the blur is isotropic on the
+/// sphere) and with clamped edges in theta.
+Image speckle_noise_levels(const Image& tile, const NoiseSettings& s);
+
 }  // namespace loom

@@ -13,12 +13,28 @@
 // hash of (ply ID, segment) picks one of the baked instances and a rotation of the tile in phi
 // (seamless, since the tile is periodic in phi). The hash uses only float arithmetic on exact
 // integers below 2^24, so OSL and C++ give bit-identical results.
+//
+// At render time (Eq. S.39), per lobe. A Cycles closure cannot vary inside its lobe, so S.39's
+// f N(w_o) becomes, for each fitted lobe, its weight times the noise averaged over the lobe at
+// the lobe's centre (choice: what a closure can carry). The baker stores each tile at
+// LOOM_NOISE_LEVELS blur widths (noise_level_blur: the tile itself, then Gaussians of 0.015,
+// 0.05, 0.15 rad, about the widths of the presets' lobes), stacked in v above the tile; a lobe
+// of angular width sigma = 1 / sqrt(2 sqrt(mu1 mu2)) (asg.h's exp(-mu theta^2) as a Gaussian)
+// reads the two levels around sigma, blended linearly in sigma. The centre is the lobe's z in
+// ply space for f_high, and its memory-effect direction S.40 (with the beam's incidence) for
+// f_refl. What is lost: the speckle inside a lobe (a narrow lobe keeps its full contrast, a
+// broad one averages it away, as its integral would) and its variation with the light's
+// direction across a lobe; kept: the variation from lobe to lobe, with the view, and from
+// ply segment to ply segment. The energy residual (broad multiple scattering) and the gaps'
+// diffraction are not modulated.
 #ifndef LOOM_SPECKLE_NOISE_H
 #define LOOM_SPECKLE_NOISE_H
 #include "osl_compat.h"
 
 #define LOOM_NOISE_SEGMENTS_PER_REPEAT 16.0
 #define LOOM_NOISE_HASH_MOD 65521.0
+/// Blur levels stacked in a noise image (noise_level_blur).
+#define LOOM_NOISE_LEVELS 4
 
 /// One round of a multiplicative hash on exact float integers: x is reduced mod p = 65521 first,
 /// so a x + c (a, c < 256) stays below 2^24, where float arithmetic is exact.
@@ -75,6 +91,74 @@ LOOM_FN vector noise_memory_effect_direction(vector wi, vector wo) {
   vector H = s / l;
   vector n = vector(0.0, 1.0, 0.0);
   return 2.0 * dot(n, H) * H - n;
+}
+
+/// The blur (Gaussian standard deviation, radians of outgoing angle) of level l of a noise image.
+LOOM_FN float noise_level_blur(int l) {
+  if (l <= 0)
+    return 0.0;
+  if (l == 1)
+    return 0.015;
+  if (l == 2)
+    return 0.05;
+  return 0.15;
+}
+
+/// The fractional level of a lobe of angular width sigma: linear in sigma between the levels'
+/// blurs, clamped to [0, LOOM_NOISE_LEVELS - 1] (NaN: the broadest).
+LOOM_FN float noise_level_coord(float sigma) {
+  float top = LOOM_NOISE_LEVELS - 1;
+  if (!(sigma < noise_level_blur(LOOM_NOISE_LEVELS - 1)))
+    return top;
+  float c = 0.0;
+  for (int l = 0; l < LOOM_NOISE_LEVELS - 1; l += 1) {
+    float a = noise_level_blur(l), b = noise_level_blur(l + 1);
+    if (sigma >= a && sigma < b)
+      c = l + (sigma - a) / (b - a);
+  }
+  return c;
+}
+
+/// The angular width of a lobe exp(-mu1 x^2 - mu2 y^2) as one Gaussian: 1 / sqrt(2 sqrt(mu1 mu2))
+/// (bandwidths clamped to [1e-6, 1e12]).
+LOOM_FN float noise_lobe_sigma(float mu1, float mu2) {
+  float m = sqrt(clamp(mu1, 1e-6, 1e12) * clamp(mu2, 1e-6, 1e12));
+  return 1.0 / sqrt(2.0 * m);
+}
+
+/// v of level `level` of `levels` stacked tiles, for v in [0, 1] of one tile (noise_tile_uv).
+LOOM_FN float noise_level_v(float v, int level, int levels) {
+  return (level + clamp(v, 0.0, 1.0)) / max(levels, 1);
+}
+
+/// The noise instance and phi rotation of a shading point (header comment): a hash of the ply ID
+/// and of the ply segment at `along` (the position along the yarn over one repeat, [0, 1)).
+LOOM_FN void noise_pick(float ply_id, float along, int instances, LOOM_OUT(int) instance,
+                        LOOM_OUT(float) phi_shift) {
+  float h = noise_hash(ply_id, floor(clamp(along, 0.0, 1.0) * LOOM_NOISE_SEGMENTS_PER_REPEAT));
+  float x = h * max(instances, 1);
+  instance = min((int)floor(x), max(instances, 1) - 1);
+  phi_shift = x - instance;
+}
+
+/// Where a lobe with centre z (ply space) reads its noise (header comment): u and the two
+/// levels' v, and the weight of the upper one. `refl`: an f_refl lobe, read at the memory-effect
+/// direction with the beam's ply-space direction wi = (0, cos theta_i, sin theta_i).
+LOOM_FN void noise_lobe_uv(vector z, vector wi, int refl, float mu1, float mu2, int instance,
+                           float phi_shift, int instances, LOOM_OUT(float) u,
+                           LOOM_OUT(float) v0, LOOM_OUT(float) v1, LOOM_OUT(float) t) {
+  vector w = z;
+  if (refl)
+    w = noise_memory_effect_direction(wi, z);
+  float v;
+  noise_tile_uv(w, phi_shift, instance, instances, u, v);
+  float c = noise_level_coord(noise_lobe_sigma(mu1, mu2));
+  int l = (int)floor(c);
+  if (l > LOOM_NOISE_LEVELS - 2)
+    l = LOOM_NOISE_LEVELS - 2;
+  t = c - l;
+  v0 = noise_level_v(v, l, LOOM_NOISE_LEVELS);
+  v1 = noise_level_v(v, l + 1, LOOM_NOISE_LEVELS);
 }
 
 #endif
