@@ -616,6 +616,19 @@ std::array<float, 3> gap_diffraction_closures(const RaywavePoint::Impl& q, vec3 
   return out;
 }
 
+/// The model's noise factors (Eq. S.39) at ply-space direction lp: f_refl's and f_high's.
+void model_noise(const RaywavePoint::Impl& q, const Vec3d& lp, float nr[4], float nh[4]) {
+  for (int c = 0; c < 4; ++c) nr[c] = nh[c] = 1;
+  if (!q.noise) return;
+  const vec3 w(float(lp.x), float(lp.y), float(lp.z));
+  float u, v;
+  noise_tile_uv(noise_memory_effect_direction(q.wi_ply, w), q.noise_shift, q.noise_instance,
+                q.noise->instances, u, v);
+  sample_periodic(*q.noise->refl, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nr);
+  noise_tile_uv(w, q.noise_shift, q.noise_instance, q.noise->instances, u, v);
+  sample_periodic(*q.noise->high, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nh);
+}
+
 std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
   const Evaluator e = q.e;
   std::array<float, 3> out = {0, 0, 0};
@@ -626,16 +639,8 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
     const Vec3d lp{dot(L, q.xp), dot(L, q.yp), dot(L, q.t)};
     const double fr = asg_mixture_eval(q.refl, lp);
     // Eq. S.39: f_refl N_r(w'_o) + f_high N_h(w_o), the tiles themselves (level 0).
-    float nr[4] = {1, 1, 1, 1}, nh[4] = {1, 1, 1, 1};
-    if (q.noise) {
-      const vec3 w(float(lp.x), float(lp.y), float(lp.z));
-      float u, v;
-      noise_tile_uv(noise_memory_effect_direction(q.wi_ply, w), q.noise_shift, q.noise_instance,
-                    q.noise->instances, u, v);
-      sample_periodic(*q.noise->refl, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nr);
-      noise_tile_uv(w, q.noise_shift, q.noise_instance, q.noise->instances, u, v);
-      sample_periodic(*q.noise->high, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nh);
-    }
+    float nr[4], nh[4];
+    model_noise(q, lp, nr, nh);
     for (int c = 0; c < 3; ++c) {
       const double f = fr * nr[c] + asg_mixture_eval(q.high[c], lp) * nh[c];
       double v;
@@ -702,6 +707,69 @@ std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, 
   return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
 }
 
+MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int texels,
+                                      int views, int sphere_n) {
+  // Part k of the model and of the closures at L (green, f cos): 0 reflection, 2 refraction,
+  // 1 translucent lobes (by the closures' kind), 3 the energy residual, 4 the layer's diffuse.
+  auto part = [](const RaywavePoint::Impl& qm, const RaywavePoint::Impl& qc, int k, vec3 wi) {
+    std::pair<float, float> out{0.0f, 0.0f};
+    if (!qm.valid || !qc.valid) return out;
+    const vec3 L = normalize(qm.back ? vec3(wi.x, wi.y, -wi.z) : wi);
+    const Vec3d lp{dot(L, qm.xp), dot(L, qm.yp), dot(L, qm.t)};
+    const vec3 n(0, 0, 1);
+    const double lambert = std::fabs(L.z) / M_PI;
+    const size_t nl = qm.refl.size() + qm.high[1].size();
+    if (k == 3) {
+      const double m = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * qm.res_b[1] * lambert
+                               : qm.open * (1 - qm.s) * qm.rho_f[1] * qm.res_f[1] * lambert;
+      const float c = qc.list[nl + 1].weight[1] * cycles::diffuse_eval(n, L, n) +
+                      qc.list[nl + 2].weight[1] * cycles::translucent_eval(n, L, n);
+      return std::pair<float, float>(float(m), c);
+    }
+    if (k == 4) {
+      const double m = L.z < 0 ? qm.open * qm.s * qm.f_total[1] * lambert : 0.0;
+      return std::pair<float, float>(float(m),
+                                     qc.list[nl].weight[1] * cycles::translucent_eval(n, L, n));
+    }
+    float nr[4], nh[4];
+    model_noise(qm, lp, nr, nh);
+    const float vis_l = qm.back || L.z <= 0 ? 1.0f : horizon_visibility(L, const_cast<float*>(qm.hor));
+    const double factor = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * vis_l
+                                  : qm.open * (1 - qm.s) * qm.rho_f[1];
+    size_t imf = 0, irf = 0;
+    for (size_t l = 0; l < nl; ++l) {
+      const RaywaveClosure& cl = qc.list[l];
+      float c = 0;
+      if (cl.kind == 0) {
+        c = qc.mf[imf].eval(L) * qc.mf_w[imf][1];
+        ++imf;
+      } else if (cl.kind == 2) {
+        c = qc.refr[irf].eval(L) * qc.refr_w[irf][1];
+        ++irf;
+      } else {
+        c = cl.weight[1] * cycles::translucent_eval(n, L, n);
+      }
+      if (cl.kind != k) continue;
+      const bool refl = l < qm.refl.size();
+      const AsgLobe& lobe = refl ? qm.refl[l] : qm.high[1][l - qm.refl.size()];
+      const double f = asg_mixture_eval({lobe}, lp) * (refl ? nr[1] : nh[1]);
+      out.first += float(f * factor);
+      out.second += c;
+    }
+    return out;
+  };
+  MappingByKind r;
+  MappingError* slot[5] = {&r.reflection, &r.translucent, &r.refraction, &r.residual,
+                           &r.layer_diffuse};
+  for (int k = 0; k < 5; ++k)
+    *slot[k] = mapping_error_loop(a, texels, views, sphere_n, [&d, k, part](const SurfacePoint& p, vec3 v) {
+      auto qm = std::make_shared<const RaywavePoint::Impl>(prepare(d, p, v, Evaluator::Model, false));
+      auto qc = std::make_shared<const RaywavePoint::Impl>(prepare(d, p, v, Evaluator::Closures, false));
+      return MappingPair([qm, qc, k, part](vec3 l) { return part(*qm, *qc, k, l); });
+    });
+  return r;
+}
+
 MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels, int views,
                                    int sphere_n) {
   return mapping_error_loop(a, texels, views, sphere_n, [&d](const SurfacePoint& p, vec3 v) {
@@ -739,7 +807,8 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
         for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
       }
     r.gap = std::clamp(p.gap, 0.0f, 1.0f);
-    for (const RaywaveClosure& cl : RaywavePoint(d, p, wo, Evaluator::Closures).closures())
+    const RaywavePoint pc(d, p, wo, Evaluator::Closures);  // (named: it owns the list)
+    for (const RaywaveClosure& cl : pc.closures())
       if (cl.kind == 4)
         for (int c = 0; c < 3; ++c) r.diffracted[size_t(c)] = r.gap - cl.weight[size_t(c)];
   });

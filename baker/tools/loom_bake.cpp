@@ -145,6 +145,10 @@ int main(int argc, char** argv) {
   mapping->add_option("--atlas", mapping_atlas, "atlas directory")->required();
   mapping->add_option("--texels", mapping_texels, "texels sampled over the repeat")
       ->check(CLI::Range(1, 4096));
+  bool mapping_by_kind = false;
+  mapping->add_flag("--by-kind", mapping_by_kind,
+                    "ray-wave atlases: also the error of each kind of closure (reflection, "
+                    "refraction and translucent lobes, energy residual, double layer's diffuse)");
   mapping->add_option("--views", mapping_views, "view directions over the hemisphere")
       ->check(CLI::Range(1, 1024));
 
@@ -370,15 +374,32 @@ int main(int argc, char** argv) {
       auto e = rw ? loom::raywave_mapping_error(atlas, loom::load_raywave(atlas), mapping_texels,
                                                 mapping_views)
                   : loom::mapping_error(atlas, mapping_texels, mapping_views);
-      std::cout << json{{"mean_relative_l1", e.mean_l1},
-                        {"worst_relative_l1", e.worst_l1},
-                        {"mean_energy_error", e.mean_energy},
-                        {"worst_energy_error", e.worst_energy},
-                        {"texels", e.texels},
-                        {"pairs", e.views},
-                        {"tier", rw ? "raywave" : "surface"}}
-                       .dump()
-                << std::endl;
+      json out = {{"mean_relative_l1", e.mean_l1},
+                  {"worst_relative_l1", e.worst_l1},
+                  {"mean_energy_error", e.mean_energy},
+                  {"worst_energy_error", e.worst_energy},
+                  {"texels", e.texels},
+                  {"pairs", e.views},
+                  {"tier", rw ? "raywave" : "surface"}};
+      if (mapping_by_kind) {
+        if (!rw) {
+          std::cerr << "error: --by-kind: a ray-wave atlas's closures only\n";
+          return 2;
+        }
+        const auto k = loom::raywave_mapping_by_kind(atlas, loom::load_raywave(atlas),
+                                                     mapping_texels, mapping_views);
+        auto one = [](const loom::MappingError& m) {
+          return json{{"mean_relative_l1", m.mean_l1},
+                      {"mean_energy_error", m.mean_energy},
+                      {"pairs", m.views}};
+        };
+        out["by_kind"] = {{"reflection", one(k.reflection)},
+                          {"refraction", one(k.refraction)},
+                          {"translucent", one(k.translucent)},
+                          {"residual", one(k.residual)},
+                          {"layer_diffuse", one(k.layer_diffuse)}};
+      }
+      std::cout << out.dump() << std::endl;
       return 0;
     }
     if (*albedo) {

@@ -26,6 +26,10 @@ d["name"], d["wave"] = "white_silk_organza_delta", {"diffraction": False}
 json.dump(d, sys.stdout)' > "$out/organza_delta.json"
 "$out/bin/loom-bake" bake "$out/organza_delta.json" -o "$out/raywave-delta/white_silk_organza" \
   --quality draft --progress=none
+# blend/sample_scenes.py's index for its smoke test: the organza's full model and delta variant.
+printf '{"white_silk_organza": {"diffraction": "%s", "delta": "%s"}}\n' \
+  "$(readlink -f "$out/raywave/white_silk_organza")" \
+  "$(readlink -f "$out/raywave-delta/white_silk_organza")" > "$out/sample_atlases.json"
 # One final-quality ray-wave atlas (the most lobes a preset bakes: the largest node group).
 "$out/bin/loom-bake" bake white_silk_organza -o "$out/raywave-final/white_silk_organza" \
   --quality final --progress=none

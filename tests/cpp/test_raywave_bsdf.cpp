@@ -434,6 +434,21 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
                   e == loom::Evaluator::Model ? "model" : "closures");
       EXPECT_NEAR(a, b, 0.1 * b);
     }
+    // The mapping by kind of closure: the residual and the double layer's diffuse part are the
+    // same Lambertian lobes on both sides (exact, up to the render table's ratio B_total / B_t
+    // interpolated as a ratio where the model takes the ratio of interpolated factors: 1e-3);
+    // the lobes' kinds carry the error.
+    const auto bk = loom::raywave_mapping_by_kind(atlas, d, 16, 8, 48);
+    std::printf("mapping by kind: reflection %.3f (%d), refraction %.3f (%d), translucent %.3f "
+                "(%d), residual %.2g, layer diffuse %.2g\n", bk.reflection.mean_l1,
+                bk.reflection.views, bk.refraction.mean_l1, bk.refraction.views,
+                bk.translucent.mean_l1, bk.translucent.views, bk.residual.mean_l1,
+                bk.layer_diffuse.mean_l1);
+    EXPECT_GT(bk.residual.views, 0);
+    EXPECT_LT(bk.residual.mean_l1, 1e-2);
+    EXPECT_LT(bk.layer_diffuse.mean_l1, 1e-4);
+    EXPECT_GT(bk.reflection.views, 0);
+    EXPECT_LT(bk.reflection.mean_l1, 1.0);
     // ... and it does change single texels' closure weights.
     const loom::SurfacePoint p = loom::texel_surface(atlas, 3, 5);
     const loom::RaywavePoint pn(d, p, wo, loom::Evaluator::Closures);

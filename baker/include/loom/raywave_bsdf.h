@@ -149,6 +149,17 @@ struct DirectionalAlbedo {
 DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, shading::vec3 wo,
                                  Evaluator e, int texels = 64, int sphere_n = 96);
 
+/// The closure-mapping error by kind of closure: for each of the fitted lobes the shaders turn
+/// into a Beckmann reflection (kind 0), a Beckmann refraction (2) or a translucent closure (1),
+/// the lobes of that kind together (their model, with the factors that multiply them, against
+/// their closures), and the energy residual and the double layer's diffuse part (both exact
+/// by construction, a check). Same texels, views and sphere as raywave_mapping_error.
+struct MappingByKind {
+  MappingError reflection, refraction, translucent, residual, layer_diffuse;
+};
+MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int texels = 64,
+                                      int views = 24, int sphere_n = 96);
+
 /// The closure-mapping error of mapping_error() (evaluator.h) for a ray-wave atlas: relative L1
 /// over the sphere of light directions of the eval quantity, green channel.
 MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels = 64,
