@@ -1,13 +1,15 @@
 """Render time of Loom materials as a ratio to a Principled BSDF with sheen, same scene, samples
 and resolution, measured in one run (absolute seconds are noise on a shared machine).
 
-A swatch seen by an orthographic camera, one sun, black world. Each material is rendered
---repeats times, alternating, and the median time is reported with its ratio to the Principled
-median. Node mode (the Blender here has no OSL).
+A swatch seen by an orthographic camera, black world, one sun: from the camera's side
+(--light front, the default) or from behind the cloth towards the camera, a little off its
+axis (--light back: what the transmission, double-layer and diffraction closures cost). Each
+material is rendered --repeats times, alternating, and the median time is reported with its
+ratio to the Principled median. Node mode (the Blender here has no OSL).
 
     blender -b --factory-startup --python-exit-code 1 --python bench/blender_render_ratio.py -- \
         --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] [--repeats 3] \
-        [--json OUT]
+        [--light front|back] [--json OUT]
 """
 
 import json
@@ -29,6 +31,7 @@ def extra_args(p):
     p.add_argument("--samples", type=int, default=16)
     p.add_argument("--res", type=int, default=128)
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--light", choices=("front", "back"), default="front")
     p.add_argument("--json", default=None)
 
 
@@ -64,7 +67,7 @@ def main():
     scene.camera = cam
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
     sun.data.energy = 3.0
-    lt.look_along(sun, (-0.3, 0.2, -0.93))
+    lt.look_along(sun, (-0.3, 0.2, -0.93) if args.light == "front" else (0.08, -0.25, 0.965))
     scene.collection.objects.link(sun)
 
     materials = {"principled_sheen": principled_sheen()}
@@ -91,7 +94,8 @@ def main():
         print(f"loom-bench: {name:28s} median {med:7.2f} s  ratio {med / base:6.2f}", flush=True)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"samples": args.samples, "res": args.res, "rows": rows}, f, indent=1)
+            json.dump({"samples": args.samples, "res": args.res, "light": args.light,
+                       "rows": rows}, f, indent=1)
 
 
 lt.run(main)

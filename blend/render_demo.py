@@ -14,12 +14,13 @@ the path of the PNG.
 import argparse
 import os
 import sys
-import tempfile
 import time
 
 import bpy
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from loom_blend import loom_api  # noqa: E402
+
 
 
 def parse():
@@ -33,32 +34,6 @@ def parse():
     p.add_argument("--size-factor", type=float, default=None,
                    help="weave magnification (default: the scene's loom_size_factor)")
     return p.parse_args(argv)
-
-
-def loom_api():
-    """loom.api from the enabled add-on, else enable this checkout's addon/."""
-    try:
-        import loom.api
-
-        return loom.api
-    except ImportError:
-        pass
-    import addon_utils
-
-    for mod in addon_utils.modules():
-        if mod.__name__.endswith(".loom") and mod.__name__.startswith("bl_ext."):
-            addon_utils.enable(mod.__name__, default_set=True)
-            import loom.api
-
-            return loom.api
-    tmp = tempfile.mkdtemp(prefix="loom-ext-")
-    os.symlink(os.path.join(REPO, "addon"), os.path.join(tmp, "loom"))
-    bpy.context.preferences.extensions.repos.new(name="loom_dev", module="loom_dev",
-                                                 custom_directory=tmp, source="USER")
-    addon_utils.enable("bl_ext.loom_dev.loom", default_set=True)
-    import loom.api
-
-    return loom.api
 
 
 def main():

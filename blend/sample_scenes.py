@@ -29,12 +29,13 @@ import json
 import math
 import os
 import sys
-import tempfile
 import time
 
 import bpy
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from loom_blend import loom_api  # noqa: E402
+
 FRONT_VARIANTS = ("nonoise", "perlin_nonoise", "diffraction", "perlin")
 BACK_VARIANTS = ("delta", "diffraction")
 
@@ -52,26 +53,6 @@ def parse():
     p.add_argument("--check", action="store_true",
                    help="fail unless every front-lit image has light in it")
     return p.parse_args(argv)
-
-
-def loom_api():
-    """loom.api from the enabled add-on, else enable this checkout's addon/."""
-    try:
-        import loom.api
-
-        return loom.api
-    except ImportError:
-        pass
-    import addon_utils
-
-    tmp = tempfile.mkdtemp(prefix="loom-ext-")
-    os.symlink(os.path.join(REPO, "addon"), os.path.join(tmp, "loom"))
-    bpy.context.preferences.extensions.repos.new(name="loom_dev", module="loom_dev",
-                                                 custom_directory=tmp, source="USER")
-    addon_utils.enable("bl_ext.loom_dev.loom", default_set=True)
-    import loom.api
-
-    return loom.api
 
 
 def look_along(obj, direction):
