@@ -9,7 +9,7 @@ import sys
 
 import bpy
 
-from . import api, operators, osl_paths, preferences, properties, ui
+from . import api, atlas_check, operators, osl_paths, preferences, properties, ui
 
 _classes = (*preferences.classes, *properties.classes, *operators.classes, *ui.classes)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(_classes)
@@ -24,6 +24,7 @@ def register():
     _register_classes()
     properties.register_props()
     osl_paths.register()
+    atlas_check.register()
     for name, module in _ALIASES.items():
         if __name__ != "loom":
             sys.modules.setdefault(name, module)
@@ -33,6 +34,7 @@ def unregister():
     for name, module in _ALIASES.items():
         if __name__ != "loom" and sys.modules.get(name) is module:
             del sys.modules[name]
+    atlas_check.unregister()
     osl_paths.unregister()
     properties.unregister_props()
     _unregister_classes()

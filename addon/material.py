@@ -22,6 +22,10 @@ OSL_TEXT_NAME = osl_source.SURFACE_SHADER
 NODE_NAMES = ("Loom Surface", "Loom Surface (OSL)")
 MODES = ("AUTO", "OSL", "NODES")
 MANAGED_PROP = "loom"  # Material.loom (PropertyGroup) once registered; see is_loom_material
+# Recorded at build for atlas_check.py: the warp yarn's linear colour (the fallback's) on the
+# material, and the atlas's spec hash on the Script node (node groups record their own).
+FALLBACK_RGB_PROP = "loom_fallback_rgb"
+SPEC_PROP = "loom_spec_sha256"
 
 
 class AssignResult:
@@ -179,10 +183,16 @@ def build_material(mat, atlas_dir: str, mode: str = "AUTO", scale: float = 1.0, 
     # An atlas may state the convention its LUT was baked for (manifest "cycles").
     cycles_conv = manifest.get("cycles", {}) if isinstance(manifest.get("cycles"), dict) else {}
     mat.cycles.use_bump_map_correction = bool(cycles_conv.get("bump_map_correction", True))
+    # What a later load renders if this atlas goes missing or stale (atlas_check.py).
+    colours = manifest.get("yarn_colours_linear", {})
+    warp = colours.get("warp") if isinstance(colours, dict) else None
+    if isinstance(warp, list) and len(warp) >= 3:
+        mat[FALLBACK_RGB_PROP] = [float(c) for c in warp[:3]]
     if hasattr(mat, "loom"):
         mat.loom.atlas_dir = atlas_dir
         mat.loom.mode_used = used
         mat.loom.status = reason
+        mat.loom.atlas_problem = ""
     return AssignResult(mat, used, reason, scale)
 
 
@@ -272,6 +282,7 @@ def _build_osl(mat, atlas_dir, manifest, scale):
     for name, file in files.items():
         script.inputs[name].default_value = os.path.join(atlas_dir, file)
     osl_paths.remember(script, atlas_dir, files)  # re-resolved before every render
+    script[SPEC_PROP] = str(manifest.get("spec_sha256", ""))
     texco = nt.nodes.new("ShaderNodeTexCoord")
     texco.location = (-300, 100)
     tan = nt.nodes.new("ShaderNodeTangent")

@@ -98,6 +98,10 @@ class LoomMaterialSettings(PropertyGroup):
                               description="The atlas this material reads")
     mode_used: StringProperty(name="Mode Used")
     status: StringProperty(name="Status")
+    atlas_problem: StringProperty(
+        name="Atlas Problem",
+        description="Why the atlas cannot render (missing, unreadable or stale), found when the "
+                    "file was loaded; empty when it is sound")
     needs_report: StringProperty(name="Scene Needs",
                                  description="What Check Scene Needs found, one finding a line")
 

@@ -64,6 +64,13 @@ class MATERIAL_PT_loom(Panel):
             if wm.loom_bake_status:
                 layout.label(text=wm.loom_bake_status, icon="INFO")
 
+        if s.atlas_problem:
+            warn = layout.box().column()
+            warn.alert = True
+            warn.label(text=f"Atlas {s.atlas_problem}", icon="ERROR")
+            warn.label(text="Rendering a plain fallback; the material's nodes are kept")
+            warn.label(text="Re-bake bakes the atlas again and rebuilds this material's nodes")
+            warn.operator("loom.bake_assign", text="Re-bake", icon="FILE_REFRESH")
         if s.atlas_dir:
             box = layout.box()
             box.label(text=f"Atlas: {s.atlas_dir}", icon="TEXTURE")

@@ -8,12 +8,21 @@ material is rendered --repeats times, alternating, and the median time is report
 ratio to the Principled median. Node mode (the Blender here has no OSL).
 
     blender -b --factory-startup --python-exit-code 1 --python bench/blender_render_ratio.py -- \
-        --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] [--repeats 3] \
-        [--light front|back] [--json OUT]
+        --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] \
+        [--repeats 3] [--light front|back] [--reference NAME [--noise-floor]] [--images DIR] \
+        [--json OUT]
+
+--reference NAME adds each image's relative RMSE against NAME's image (RGB, last repeat):
+sqrt(sum (a - b)^2 / sum b^2). Every material renders with the same seed (common random
+numbers: what differs is mostly the material); --noise-floor renders NAME once more with
+another seed and reports that pair's RMSE, what Monte Carlo noise alone does at these
+samples. --images keeps every material's last render as DIR/NAME.exr.
 """
 
 import json
+import math
 import os
+import shutil
 import statistics
 import sys
 import time
@@ -32,6 +41,9 @@ def extra_args(p):
     p.add_argument("--res", type=int, default=128)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--light", choices=("front", "back"), default="front")
+    p.add_argument("--reference", default=None, help="material the images are compared with")
+    p.add_argument("--noise-floor", action="store_true")
+    p.add_argument("--images", default=None, help="directory for each material's render")
     p.add_argument("--json", default=None)
 
 
@@ -44,6 +56,17 @@ def principled_sheen():
     p.inputs["Sheen Weight"].default_value = 1.0
     p.inputs["Sheen Roughness"].default_value = 0.5
     return mat
+
+
+def relative_rmse(a, b):
+    """sqrt(sum (a - b)^2 / sum b^2) over the RGB of two images of one size."""
+    num = den = 0.0
+    for i in range(0, len(b.px), 4):
+        for c in range(3):
+            d = a.px[i + c] - b.px[i + c]
+            num += d * d
+            den += b.px[i + c] * b.px[i + c]
+    return math.sqrt(num / den) if den > 0 else 0.0
 
 
 def main():
@@ -77,25 +100,53 @@ def main():
         materials[name] = loom.api.assign(plane, atlas, mode="nodes", scale=None,
                                           material=bpy.data.materials.new(name))
         print(f"loom-bench: {name}: material built in {time.monotonic() - t0:.2f} s", flush=True)
+    if args.noise_floor and args.reference is None:
+        raise SystemExit("--noise-floor: needs --reference NAME (the material rendered again)")
+    if args.reference is not None and args.reference not in materials:
+        raise SystemExit(f"--reference: {args.reference!r} is not one of the --material names "
+                         f"({', '.join(materials)})")
     times = {n: [] for n in materials}
+    images = {}
     out = os.path.join(bpy.app.tempdir or "/tmp", "loom_render_ratio.exr")
+    if args.images:
+        os.makedirs(args.images, exist_ok=True)
+
+    def render(mat):
+        plane.data.materials.clear()
+        plane.data.materials.append(mat)
+        t0 = time.monotonic()
+        img = lt.render_to_exr(scene, out)
+        return time.monotonic() - t0, img
+
     for _ in range(args.repeats):
         for name, mat in materials.items():
-            plane.data.materials.clear()
-            plane.data.materials.append(mat)
-            t0 = time.monotonic()
-            lt.render_to_exr(scene, out)
-            times[name].append(time.monotonic() - t0)
+            dt, images[name] = render(mat)
+            times[name].append(dt)
+            if args.images:
+                shutil.copyfile(out, os.path.join(args.images, name + ".exr"))
+    floor = None
+    if args.reference is not None and args.noise_floor:
+        scene.cycles.seed = scene.cycles.seed + 1
+        _, again = render(materials[args.reference])
+        floor = relative_rmse(again, images[args.reference])
+        print(f"loom-bench: {args.reference} against itself with another seed: relative RMSE "
+              f"{floor:.4f}", flush=True)
     base = statistics.median(times["principled_sheen"])
     rows = []
     for name, ts in times.items():
         med = statistics.median(ts)
-        rows.append({"material": name, "median_s": med, "ratio": med / base, "times": ts})
-        print(f"loom-bench: {name:28s} median {med:7.2f} s  ratio {med / base:6.2f}", flush=True)
+        row = {"material": name, "median_s": med, "ratio": med / base, "times": ts}
+        line = f"loom-bench: {name:28s} median {med:7.2f} s  ratio {med / base:6.2f}"
+        if args.reference is not None:
+            row["relative_rmse"] = relative_rmse(images[name], images[args.reference])
+            line += f"  rel. RMSE vs {args.reference} {row['relative_rmse']:.4f}"
+        rows.append(row)
+        print(line, flush=True)
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"samples": args.samples, "res": args.res, "light": args.light,
-                       "rows": rows}, f, indent=1)
+                       "reference": args.reference, "noise_floor": floor, "rows": rows}, f,
+                      indent=1)
 
 
 lt.run(main)

@@ -19,6 +19,7 @@
 #include "loom/shading.h"
 #include "loom/spec.h"
 #include "loom/ply_maps.h"
+#include "loom/preset_error.h"
 #include "loom/weave.h"
 
 using nlohmann::json;
@@ -44,6 +45,53 @@ bool parse_vec(const std::string& s, int n, std::vector<double>& out) {
     pos = end + 1;
   }
   return int(out.size()) == n;
+}
+
+/// The ray simulation of the grid slice of an atlas's ply tables nearest to (theta_i, h),
+/// identical to the bake's (same seed), at sigma = 0 and `sigma`: what eval raywave --raw and
+/// eval lobes --raw compare the fit with. For a multi-ply yarn this is one ply's scattering
+/// while the tables hold the yarn's (Eq. S.13).
+struct NearestSlice {
+  loom::PlySimSlice slice;
+  loom::PlySimSettings settings;
+  double theta_i = 0, h = 0;
+  bool multi_ply = false;
+  /// Simulated f_refl + f_high (at `sigma`) in the bin of direction w.
+  double value(const loom::Vec3d& w, double* refl = nullptr, double* high = nullptr) const {
+    int bt, bp;
+    loom::ply_sim_bin_of(settings, w, bt, bp);
+    const size_t bins = size_t(settings.theta_o_count) * size_t(settings.phi_o_count);
+    const size_t b = size_t(bt) * size_t(settings.phi_o_count) + size_t(bp);
+    const double r = slice.refl[b], hh = slice.high[(settings.sigmas.size() - 1) * bins + b];
+    if (refl) *refl = r;
+    if (high) *high = hh;
+    return r + hh;
+  }
+};
+
+NearestSlice simulate_nearest_slice(const loom::Atlas& atlas, const loom::AsgTable& high,
+                                    const std::string& yarn, double theta_i, double h,
+                                    double sigma) {
+  auto res = loom::parse_spec(atlas.manifest.value("spec", json()));
+  if (!res.ok()) throw std::runtime_error("the atlas's spec does not parse: " + res.errors[0]);
+  const loom::YarnSpec& y = yarn == "weft" ? res.spec.weft : res.spec.warp;
+  NearestSlice out;
+  out.settings = loom::ply_sim_settings(res.spec.quality);
+  auto nearest = [](const std::vector<double>& g, double x) {
+    size_t best = 0;
+    for (size_t i = 1; i < g.size(); ++i)
+      if (std::fabs(g[i] - x) < std::fabs(g[best] - x)) best = i;
+    return best;
+  };
+  const size_t m = nearest(high.theta_i, theta_i), hn = nearest(high.h, h);
+  out.settings.sigmas = {0.0};
+  if (sigma > 0) out.settings.sigmas.push_back(sigma);
+  auto p = loom::ply_params_from_yarn(y);
+  loom::PlyGeometry g(p, loom::make_ply_fibers(p, 0, 0));
+  out.slice = loom::simulate_ply_slice(g, y.ior, out.settings, high.theta_i[m], high.h[hn],
+                                       m * high.h.size() + hn);
+  out.theta_i = high.theta_i[m], out.h = high.h[hn], out.multi_ply = y.plies > 1;
+  return out;
 }
 
 /// CLI::Range for real numbers, but NaN and infinities are rejected too (every comparison with
@@ -215,17 +263,22 @@ int main(int argc, char** argv) {
   std::string rw_atlas, rw_wo_s, rw_yarn = "warp";
   double rw_theta = 0, rw_h = 0, rw_sigma = 0;
   bool rw_raw = false;
-  raywave->add_option("--atlas", rw_atlas, "ray-wave atlas directory")->required();
-  raywave->add_option("--theta-i", rw_theta, "incident angle, degrees [-90, 90]")
-      ->required()
-      ->check(finite_range(-90.0, 90.0));
-  raywave->add_option("--h", rw_h, "offset across the ply, [-1, 1]")
-      ->required()
-      ->check(finite_range(-1.0, 1.0));
-  raywave->add_option("--sigma", rw_sigma, "fiber absorption, 1/mm, [0, 1e6]")
-      ->check(finite_range(0.0, 1e6));
+  // --atlas, --theta-i, --h, --sigma, --yarn: where in an atlas's ply tables a probe looks.
+  auto add_slice_options = [](CLI::App* sub, std::string& atlas, double& theta, double& h,
+                              double& sigma, std::string& yarn) {
+    sub->add_option("--atlas", atlas, "ray-wave atlas directory")->required();
+    sub->add_option("--theta-i", theta, "incident angle, degrees [-90, 90]")
+        ->required()
+        ->check(finite_range(-90.0, 90.0));
+    sub->add_option("--h", h, "offset across the ply, [-1, 1]")
+        ->required()
+        ->check(finite_range(-1.0, 1.0));
+    sub->add_option("--sigma", sigma, "fiber absorption, 1/mm, [0, 1e6]")
+        ->check(finite_range(0.0, 1e6));
+    sub->add_option("--yarn", yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
+  };
+  add_slice_options(raywave, rw_atlas, rw_theta, rw_h, rw_sigma, rw_yarn);
   raywave->add_option("--wo", rw_wo_s, "X,Y,Z outgoing direction in ply space")->required();
-  raywave->add_option("--yarn", rw_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
   raywave->add_flag("--raw", rw_raw,
                     "also re-run the simulation of the nearest grid slice (identical to the "
                     "bake's: same seed) and print its value in the bin of --wo");
@@ -237,6 +290,39 @@ int main(int argc, char** argv) {
   tables->add_option("--atlas", tables_atlas, "ray-wave atlas to measure")->required();
   tables->add_option("--reference", tables_ref, "ray-wave atlas to compare with")->required();
   tables->add_option("--yarn", tables_yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
+
+  auto* error = eval->add_subcommand(
+      "error", "error of an atlas's BSDF against the same fabric at another preset (e.g. "
+               "reference), by the C++ model: relative L1 over the sphere (preset_error.h)");
+  std::string error_atlas, error_ref;
+  int error_points = 64, error_views = 12, error_sphere = 48;
+  error->add_option("--atlas", error_atlas, "atlas to measure")->required();
+  error->add_option("--reference", error_ref, "atlas of the same fabric and tier to compare with")
+      ->required();
+  error->add_option("--points", error_points,
+                    "points of the weave repeat (an n x n lattice, n = round(sqrt(points)))")
+      ->check(CLI::Range(1, 4096));
+  error->add_option("--views", error_views, "view directions over the sphere")
+      ->check(CLI::Range(1, 1024));
+  error->add_option("--sphere", error_sphere, "light directions: N x 2N over the sphere")
+      ->check(CLI::Range(2, 512));
+
+  auto* lobes = eval->add_subcommand(
+      "lobes", "each fitted lobe of a ray-wave atlas (Eq. S.1, S.7, S.11) at (theta_i, h, "
+               "sigma) on an (elevation, azimuth) grid of ply-space directions, for plots");
+  std::string lobes_atlas, lobes_yarn = "warp";
+  double lobes_theta = 0, lobes_h = 0, lobes_sigma = 0;
+  int lobes_res = 48;
+  bool lobes_raw = false;
+  add_slice_options(lobes, lobes_atlas, lobes_theta, lobes_h, lobes_sigma, lobes_yarn);
+  lobes->add_option("--res", lobes_res, "grid rows (elevation); columns (azimuth) 2x, [4, 512]")
+      ->check(CLI::Range(4, 512));
+  lobes->add_flag("--raw", lobes_raw,
+                  "also the simulated scattering of the nearest grid slice on the same grid");
+  bool lobes_snap = false;
+  lobes->add_flag("--snap", lobes_snap,
+                  "evaluate the lobes at the tables' grid slice (theta_i, h) nearest to the one "
+                  "asked, where the simulation is (to compare the two)");
 
   auto* noise = eval->add_subcommand(
       "noise", "statistics of a ray-wave atlas's speckle noise tiles (Eq. S.37, S.38)");
@@ -594,6 +680,93 @@ int main(int argc, char** argv) {
       std::cout << out.dump() << std::endl;
       return 0;
     }
+    if (*error) {
+      const auto a = loom::load_atlas(error_atlas), r = loom::load_atlas(error_ref);
+      const auto e = loom::preset_error(a, r, error_points, error_views, error_sphere);
+      std::cout << json{{"average_relative_l1", e.average},
+                        {"pointwise_mean_relative_l1", e.pointwise_mean},
+                        {"pointwise_worst_relative_l1", e.pointwise_worst},
+                        {"energy_error", e.energy},
+                        {"points", e.points},
+                        {"views", e.views},
+                        {"tier", a.manifest.value("tier", "")},
+                        {"quality", a.manifest.value("quality", "")},
+                        {"reference_quality", r.manifest.value("quality", "")}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*lobes) {
+      const auto atlas = loom::load_atlas(lobes_atlas);
+      const auto t = loom::load_ply_tables(atlas, lobes_yarn);
+      double th = lobes_theta * M_PI / 180, lh = lobes_h;
+      if (lobes_snap) {
+        auto nearest = [](const std::vector<double>& g, double x) {
+          double best = g.front();
+          for (double v : g)
+            if (std::fabs(v - x) < std::fabs(best - x)) best = v;
+          return best;
+        };
+        th = nearest(t.high.theta_i, th), lh = nearest(t.high.h, lh);
+      }
+      const auto high = loom::asg_table_lobes(t.high, th, lh, lobes_sigma);
+      const auto refl = loom::asg_table_lobes(t.refl, th, lh, 0);
+      // Ply space: z along the ply axis (the ASG frame of Eq. S.2); elevation from the ply's
+      // normal plane, as in eval tables. Row r at elevation -90 + 180 (r + 0.5) / res.
+      const int rows = lobes_res, cols = 2 * lobes_res;
+      std::vector<loom::Vec3d> dirs;
+      for (int r = 0; r < rows; ++r) {
+        const double el = -M_PI / 2 + M_PI * (r + 0.5) / rows;
+        for (int c = 0; c < cols; ++c) {
+          const double az = -M_PI + 2 * M_PI * (c + 0.5) / cols;
+          dirs.push_back({std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)});
+        }
+      }
+      auto grid = [&](const std::vector<loom::AsgLobe>& ls) {
+        json rowsj = json::array();
+        for (int r = 0; r < rows; ++r) {
+          json row = json::array();
+          for (int c = 0; c < cols; ++c)
+            row.push_back(loom::asg_mixture_eval(ls, dirs[size_t(r) * size_t(cols) + size_t(c)]));
+          rowsj.push_back(row);
+        }
+        return rowsj;
+      };
+      auto each = [&](const std::vector<loom::AsgLobe>& ls) {
+        json out = json::array();
+        for (const auto& l : ls)
+          out.push_back({{"theta_z", l.theta_z}, {"phi_z", l.phi_z}, {"phi_xy", l.phi_xy},
+                         {"mu1", l.mu1}, {"mu2", l.mu2}, {"c", l.c},
+                         {"values", grid({l})}});
+        return out;
+      };
+      std::vector<loom::AsgLobe> all = high;
+      all.insert(all.end(), refl.begin(), refl.end());
+      json out = {{"theta_i_deg", th * 180 / M_PI}, {"h", lh}, {"sigma_per_mm", lobes_sigma},
+                  {"yarn", lobes_yarn},
+                  {"grid", {{"rows", rows}, {"cols", cols},
+                            {"elevation", "row r: -90 + 180 (r + 0.5) / rows degrees"},
+                            {"azimuth", "column c: -180 + 360 (c + 0.5) / cols degrees"}}},
+                  {"high", each(high)}, {"refl", each(refl)}, {"total", grid(all)}};
+      if (lobes_raw) {
+        const NearestSlice sl =
+            simulate_nearest_slice(atlas, t.high, lobes_yarn, th, lh, lobes_sigma);
+        json rowsj = json::array();
+        for (int r = 0; r < rows; ++r) {
+          json row = json::array();
+          for (int c = 0; c < cols; ++c)
+            row.push_back(sl.value(dirs[size_t(r) * size_t(cols) + size_t(c)]));
+          rowsj.push_back(row);
+        }
+        out["raw"] = {{"values", rowsj},
+                      {"theta_i_deg", sl.theta_i * 180 / M_PI},
+                      {"h", sl.h},
+                      {"model", sl.multi_ply ? "single ply (the tables are multi-ply)"
+                                             : "single ply"}};
+      }
+      std::cout << out.dump() << std::endl;
+      return 0;
+    }
     if (*tables) {
       auto a = loom::load_atlas(tables_atlas), r = loom::load_atlas(tables_ref);
       auto ta = loom::load_ply_tables(a, tables_yarn), tr = loom::load_ply_tables(r, tables_yarn);
@@ -659,34 +832,14 @@ int main(int argc, char** argv) {
         out["residual_energy"] = {{"backward", hb + rb}, {"forward", hf + rf}};
       }
       if (rw_raw) {
-        auto res = loom::parse_spec(atlas.manifest["spec"]);
-        if (!res.ok()) throw std::runtime_error("the atlas's spec does not parse: " + res.errors[0]);
-        const loom::YarnSpec& y = rw_yarn == "weft" ? res.spec.weft : res.spec.warp;
-        auto st = loom::ply_sim_settings(res.spec.quality);
-        auto nearest = [](const std::vector<double>& g, double x) {
-          size_t best = 0;
-          for (size_t i = 1; i < g.size(); ++i)
-            if (std::fabs(g[i] - x) < std::fabs(g[best] - x)) best = i;
-          return best;
-        };
-        size_t m = nearest(t.high.theta_i, th), hn = nearest(t.high.h, rw_h);
-        st.sigmas = {0.0};
-        if (rw_sigma > 0) st.sigmas.push_back(rw_sigma);
-        auto p = loom::ply_params_from_yarn(y);
-        loom::PlyGeometry g(p, loom::make_ply_fibers(p, 0, 0));
-        auto sl = loom::simulate_ply_slice(g, y.ior, st, t.high.theta_i[m], t.high.h[hn],
-                                           m * t.high.h.size() + hn);
-        int bt, bp;
-        loom::ply_sim_bin_of(st, w, bt, bp);
-        const size_t bins = size_t(st.theta_o_count) * size_t(st.phi_o_count);
-        const size_t b = size_t(bt) * size_t(st.phi_o_count) + size_t(bp);
-        double raw_refl = sl.refl[b], raw_high = sl.high[(st.sigmas.size() - 1) * bins + b];
-        // The simulation of one ply; for a multi-ply yarn the tables hold the yarn's scattering
-        // (Eq. S.13), computed from every slice, so the two differ by the neighbours' effect.
-        out["raw"] = {{"value", raw_refl + raw_high}, {"refl", raw_refl}, {"high", raw_high},
-                      {"model", y.plies > 1 ? "single ply (the tables are multi-ply)" : "single ply"},
-                      {"theta_i_deg", t.high.theta_i[m] * 180 / M_PI}, {"h", t.high.h[hn]},
-                      {"rays", st.rays_per_slice}};
+        const NearestSlice sl = simulate_nearest_slice(atlas, t.high, rw_yarn, th, rw_h, rw_sigma);
+        double raw_refl, raw_high;
+        const double raw = sl.value(w, &raw_refl, &raw_high);
+        out["raw"] = {{"value", raw}, {"refl", raw_refl}, {"high", raw_high},
+                      {"model", sl.multi_ply ? "single ply (the tables are multi-ply)"
+                                             : "single ply"},
+                      {"theta_i_deg", sl.theta_i * 180 / M_PI}, {"h", sl.h},
+                      {"rays", sl.settings.rays_per_slice}};
       }
       std::cout << out.dump() << std::endl;
       return 0;

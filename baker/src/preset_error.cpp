@@ -1,0 +1,152 @@
+#include "loom/preset_error.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <vector>
+
+#include "loom/evaluator.h"
+#include "loom/raywave_bsdf.h"
+
+namespace loom {
+
+using namespace shading;
+
+namespace {
+
+/// One atlas's f |cos L| (green) at (u, v), for a view: set up once per (point, view).
+class Bsdf {
+ public:
+  explicit Bsdf(const Atlas& a) : a_(a), raywave_(a.manifest.value("tier", "") == "raywave") {
+    if (raywave_) data_ = std::make_unique<RaywaveData>(load_raywave(a));
+  }
+  bool raywave() const { return raywave_; }
+  /// The function of L at (u, v) seen from v.
+  std::function<float(vec3)> at(float u, float v, vec3 wo) const {
+    if (raywave_) {
+      const Image& ref = a_.map("ply_frame");
+      const int ix = std::min(ref.width - 1, int(u * ref.width));
+      const int iy = std::min(ref.height - 1, int(v * ref.height));
+      const RaywavePoint q(*data_, texel_surface(a_, ix, iy), wo, Evaluator::Model,
+                           /*gap_diffraction=*/false);
+      return [q](vec3 l) { return q.eval(l)[1]; };
+    }
+    const SurfacePoint p = sample_surface(a_, u, v);
+    const Atlas* a = &a_;
+    return [a, p, wo](vec3 l) {
+      return eval_bsdf(*a, p, l, wo, Evaluator::Model)[1] * std::fabs(l.z);
+    };
+  }
+
+ private:
+  const Atlas& a_;
+  bool raywave_;
+  std::unique_ptr<RaywaveData> data_;
+};
+
+/// A jittered lattice point of the repeat: cell (i, j) of side x side, offset by a fixed hash.
+float jitter(unsigned i, unsigned j, unsigned c) {
+  unsigned h = i * 73856093u ^ j * 19349663u ^ c * 83492791u;
+  h ^= h >> 13;
+  h *= 0x5bd1e995u;
+  h ^= h >> 15;
+  return float(h & 0xffffu) / 65536.0f;
+}
+
+}  // namespace
+
+PresetErrorSampling preset_error_sampling(int points, int views, int sphere_n) {
+  PresetErrorSampling s;
+  const int side = std::max(1, int(std::lround(std::sqrt(double(points)))));
+  for (int j = 0; j < side; ++j)
+    for (int i = 0; i < side; ++i)
+      s.uv.emplace_back((i + jitter(unsigned(i), unsigned(j), 0)) / side,
+                        (j + jitter(unsigned(i), unsigned(j), 1)) / side);
+  for (int k = 0; k < views; ++k) {  // both sides, as mapping_error_loop
+    const double z = (1.0 - 2.0 * (k + 0.5) / views) * 0.99, r = std::sqrt(1 - z * z);
+    const double phi = k * 2.399963229728653;
+    s.views.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
+  }
+  for (int i = 0; i < sphere_n; ++i)
+    for (int j = 0; j < 2 * sphere_n; ++j) {
+      const double z = -1 + (i + 0.5) * 2.0 / sphere_n, r = std::sqrt(1 - z * z);
+      const double ph = (j + 0.5) * M_PI / sphere_n;
+      s.lights.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
+    }
+  s.dw = (2.0 / sphere_n) * (M_PI / sphere_n);
+  return s;
+}
+
+PresetError preset_error(const Atlas& a, const Atlas& reference, int points, int views,
+                         int sphere_n) {
+  if (points < 1 || views < 1 || sphere_n < 2)
+    throw std::runtime_error("preset_error: points and views must be >= 1, sphere_n >= 2");
+  const std::string ta = a.manifest.value("tier", ""), tr = reference.manifest.value("tier", "");
+  if (ta != tr)
+    throw std::runtime_error("the atlas is of tier \"" + ta + "\" and the reference of \"" + tr +
+                             "\": a preset is compared with the same tier's reference");
+  if (a.manifest.value("repeat", nlohmann::json()) !=
+      reference.manifest.value("repeat", nlohmann::json()))
+    throw std::runtime_error("the atlas and the reference have different weave repeats: not the "
+                             "same fabric");
+  const Bsdf fa(a), fr(reference);
+  const PresetErrorSampling sampling = preset_error_sampling(points, views, sphere_n);
+  const auto& uv = sampling.uv;
+  const auto& V = sampling.views;
+  const auto& L = sampling.lights;
+  const size_t np = uv.size(), nl = L.size();
+  // f_a and f_r for every (view, point, L), green: points x L per view, views in parallel.
+  struct PerView {
+    double pw_sum = 0, pw_worst = 0, avg = 0, energy = 0;
+    int counted = 0;
+    bool any = false;
+  };
+  std::vector<PerView> per(V.size());
+  tbb::parallel_for(size_t(0), V.size(), [&](size_t k) {
+    std::vector<double> mean_a(nl, 0.0), mean_r(nl, 0.0);
+    PerView& o = per[k];
+    for (size_t p = 0; p < np; ++p) {
+      const auto ga = fa.at(uv[p].first, uv[p].second, V[k]);
+      const auto gr = fr.at(uv[p].first, uv[p].second, V[k]);
+      double num = 0, den = 0;
+      for (size_t l = 0; l < nl; ++l) {
+        const double x = ga(L[l]), y = gr(L[l]);
+        mean_a[l] += x, mean_r[l] += y;
+        num += std::fabs(x - y), den += y;
+      }
+      if (den * sampling.dw < 1e-6) continue;  // an open gap in the reference: nothing to compare
+      const double e = num / den;
+      o.pw_sum += e, o.pw_worst = std::max(o.pw_worst, e), ++o.counted;
+    }
+    double num = 0, den = 0, ea = 0;
+    for (size_t l = 0; l < nl; ++l)
+      num += std::fabs(mean_a[l] - mean_r[l]), den += mean_r[l], ea += mean_a[l];
+    if (den > 0) o.avg = num / den, o.energy = std::fabs(ea - den) / den, o.any = true;
+  });
+  PresetError out;
+  out.points = int(np);
+  int counted = 0, views_used = 0;
+  for (const PerView& o : per) {
+    out.pointwise_mean += o.pw_sum, counted += o.counted;
+    out.pointwise_worst = std::max(out.pointwise_worst, o.pw_worst);
+    if (o.any) out.average += o.avg, out.energy += o.energy, ++views_used;
+  }
+  // Nothing compared is no agreement: say so rather than print zeros.
+  if (views_used == 0)
+    throw std::runtime_error("the reference sends no light to any of the " +
+                             std::to_string(V.size()) + " views: use more --views");
+  if (counted == 0)
+    throw std::runtime_error("every one of the " + std::to_string(np) +
+                             " points is an open gap in the reference: use more --points");
+  out.pointwise_mean /= counted;
+  out.average /= views_used, out.energy /= views_used;
+  out.views = views_used;
+  return out;
+}
+
+}  // namespace loom

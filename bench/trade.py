@@ -1,0 +1,416 @@
+"""The speed/accuracy trade, measured: for each model tier and quality preset on the weave presets
+and the sample fabrics, bake time and memory, atlas size, render time as a ratio to a Principled
+BSDF with sheen (same scene, samples and resolution, one Blender run), error against the
+`reference` preset (BSDF relative L1 from the C++ model evaluator, image relative RMSE of the
+render) and the closure-mapping error. Writes a CSV, a JSON, a Markdown summary, the Pareto plot
+(error against render-time ratio) and plots of the fitted lobes. Run by scripts/trade.sh, which
+builds first; see its header for the options.
+
+Choices where the issue is silent:
+  * Bake: each run re-bakes from scratch (--force: no reuse of another atlas's simulation), timed
+    as a whole process by /usr/bin/time (elapsed seconds and peak RSS); median over --runs.
+  * BSDF error: `loom-bake eval error` (baker/include/loom/preset_error.h), the relative L1 over
+    the sphere of the BSDF averaged over 64 points of the repeat, mean over 12 views on both sides
+    (`average`); the point-wise mean is in the table too.
+  * Render: bench/blender_render_ratio.py, node mode (what renders here), orthographic swatch, one
+    sun (--light), every preset's material and the Principled baseline rendered --repeats times
+    alternating in one Blender process, all with the same seed (common random numbers, so
+    that what differs between two images is mostly the material); the image error is against
+    the reference preset's render, and beside it the reference rendered again with another
+    seed: what Monte Carlo noise alone does at these samples.
+  * The Pareto plot shows, per tier and preset, the median over fabrics of the render-time ratio
+    and of the BSDF error, the presets of a tier joined in order, each fabric's point faint
+    behind; the points no other point beats on both axes are ringed.
+"""
+
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+WEAVES = ("plain", "twill", "satin", "basket")
+SAMPLES = ("orange_polyester_satin", "white_silk_organza", "cream_cotton_twill",
+           "gray_wool_twill", "black_polyester_plain", "beige_silk_satin", "blue_cotton_satin")
+QUALITIES = ("draft", "preview", "final", "reference")
+TIERS = ("surface", "raywave")
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(prog="scripts/trade.sh", description=__doc__.split("\n")[0])
+    p.add_argument("--fabrics", default=",".join(WEAVES + SAMPLES),
+                   help="comma-separated weave presets and sample fabrics (default: all 11)")
+    p.add_argument("--tiers", default=",".join(TIERS), help="surface,raywave")
+    p.add_argument("--raywave-fabrics", default=None,
+                   help="the ray-wave tier on these only (default: --fabrics); its reference "
+                        "bakes take minutes each")
+    p.add_argument("--qualities", default=",".join(QUALITIES),
+                   help="presets to measure; reference is always baked (errors are against it)")
+    p.add_argument("--runs", type=int, default=3, help="bakes per preset (median), >= 1")
+    p.add_argument("--samples", type=int, default=16, help="render samples per pixel")
+    p.add_argument("--res", type=int, default=96, help="render resolution (square)")
+    p.add_argument("--repeats", type=int, default=3, help="renders per material (median)")
+    p.add_argument("--light", choices=("front", "back"), default="front")
+    p.add_argument("--no-render", action="store_true", help="skip Blender (no render columns)")
+    # A single-ply fabric: its tables are the simulated ply's (a multi-ply yarn's are Eq. S.13's).
+    p.add_argument("--lobes", default="orange_polyester_satin:final:30:0.3:0",
+                   help="FABRIC:QUALITY:THETA_I_DEG:H:SIGMA of the lobe plot (with the "
+                        "ray-wave tier), or 'none'")
+    p.add_argument("--bake", default=os.path.join(ROOT, "build", "loom-bake"))
+    p.add_argument("--out", default=os.path.join(ROOT, "out", "trade"))
+    a = p.parse_args(argv)
+    a.fabrics = [f for f in a.fabrics.split(",") if f]
+    for f in a.fabrics:
+        if f not in WEAVES + SAMPLES:
+            p.error(f"--fabrics: {f!r} is not one of {', '.join(WEAVES + SAMPLES)}")
+    a.raywave_fabrics = ([f for f in a.raywave_fabrics.split(",") if f]
+                         if a.raywave_fabrics is not None else list(a.fabrics))
+    for f in a.raywave_fabrics:
+        if f not in WEAVES + SAMPLES:
+            p.error(f"--raywave-fabrics: {f!r} is not one of {', '.join(WEAVES + SAMPLES)}")
+    a.tiers = [t for t in a.tiers.split(",") if t]
+    a.qualities = [q for q in a.qualities.split(",") if q]
+    for t in a.tiers:
+        if t not in TIERS:
+            p.error(f"--tiers: {t!r} is not one of {', '.join(TIERS)}")
+    for q in a.qualities:
+        if q not in QUALITIES:
+            p.error(f"--qualities: {q!r} is not one of {', '.join(QUALITIES)}")
+    if not a.fabrics or not a.tiers or not a.qualities:
+        p.error("--fabrics, --tiers and --qualities must each name at least one")
+    if a.runs < 1 or a.samples < 1 or a.res < 8 or a.repeats < 1:
+        p.error("--runs, --samples and --repeats must be >= 1 and --res >= 8")
+    if a.lobes != "none":
+        parts = a.lobes.split(":")
+        ok = len(parts) == 5 and parts[0] in WEAVES + SAMPLES and parts[1] in QUALITIES
+        try:
+            ok = ok and -90 <= float(parts[2]) <= 90 and -1 <= float(parts[3]) <= 1 \
+                and 0 <= float(parts[4]) <= 1e6
+        except ValueError:
+            ok = False
+        if not ok:
+            p.error(f"--lobes: expected FABRIC:QUALITY:THETA_I_DEG:H:SIGMA with a weave preset or "
+                    f"sample fabric, a quality preset, theta_i in [-90, 90], h in [-1, 1], sigma in "
+                    f"[0, 1e6] (1/mm), or 'none'; got {a.lobes!r}")
+    if "reference" not in a.qualities:
+        a.qualities.append("reference")
+    a.qualities = [q for q in QUALITIES if q in a.qualities]
+    return a
+
+
+def log(msg):
+    print(f"loom-trade: {msg}", flush=True)
+
+
+def preset_path(fabric):
+    sub = "samples" if fabric in SAMPLES else ""
+    return os.path.join(ROOT, "presets", sub, fabric + ".json")
+
+
+def write_spec(fabric, tier, out_dir):
+    with open(preset_path(fabric), encoding="utf-8") as f:
+        spec = json.load(f)
+    spec.setdefault("model", {})["tier"] = tier
+    spec["model"].pop("quality", None)
+    path = os.path.join(out_dir, "specs", f"{fabric}_{tier}.json")
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(spec, f, indent=1)
+    return path
+
+
+def run_json(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"loom-trade: {' '.join(cmd)} failed ({r.returncode}):\n{r.stderr}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def bake(args, spec, quality, atlas):
+    secs, rss = [], []
+    with tempfile.NamedTemporaryFile(mode="r") as t:
+        for _ in range(args.runs):
+            cmd = ["/usr/bin/time", "-f", "%e %M", "-o", t.name, args.bake, "bake", spec, "-o",
+                   atlas, "--quality", quality, "--force", "--progress=none"]
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                raise SystemExit(f"loom-trade: bake of {spec} at {quality} failed:\n{r.stderr}")
+            t.seek(0)
+            s, kb = t.read().split()[-2:]
+            secs.append(float(s))
+            rss.append(int(kb))
+    size = sum(os.path.getsize(os.path.join(d, f)) for d, _, fs in os.walk(atlas) for f in fs)
+    return {"bake_s": statistics.median(secs), "bake_runs": secs,
+            "peak_rss_mib": statistics.median(rss) / 1024.0, "atlas_mib": size / 2.0**20}
+
+
+def render(args, fabric, tier, atlases, out_dir):
+    """One Blender run: every preset's material and the Principled baseline."""
+    js = os.path.join(out_dir, "renders", f"{fabric}_{tier}.json")
+    os.makedirs(os.path.dirname(js), exist_ok=True)
+    cmd = ["bash", os.path.join(ROOT, "scripts", "blender.sh"), "run", "-b", "--factory-startup",
+           "--python-exit-code", "1", "--python", os.path.join(HERE, "blender_render_ratio.py"),
+           "--"]
+    for q, a in atlases.items():
+        cmd += ["--material", f"{q}={a}"]
+    cmd += ["--samples", str(args.samples), "--res", str(args.res), "--repeats",
+            str(args.repeats), "--light", args.light, "--reference", "reference",
+            "--noise-floor", "--images", os.path.join(out_dir, "renders", f"{fabric}_{tier}"),
+            "--json", js]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"loom-trade: render of {fabric} ({tier}) failed:\n{r.stdout[-3000:]}"
+                         f"\n{r.stderr[-3000:]}")
+    with open(js, encoding="utf-8") as f:
+        return json.load(f)
+
+
+def measure(args):
+    rows = []
+    atlas_root = os.path.join(args.out, "atlases")
+    fabrics = list(dict.fromkeys(args.fabrics + args.raywave_fabrics))
+    for fabric in fabrics:
+        for tier in args.tiers:
+            if fabric not in (args.raywave_fabrics if tier == "raywave" else args.fabrics):
+                continue
+            spec = write_spec(fabric, tier, args.out)
+            atlases = {}
+            for q in args.qualities:
+                atlas = os.path.join(atlas_root, f"{fabric}_{tier}_{q}")
+                t0 = time.monotonic()
+                row = {"fabric": fabric, "tier": tier, "quality": q}
+                row.update(bake(args, spec, q, atlas))
+                m = run_json([args.bake, "eval", "mapping", "--atlas", atlas])
+                row["mapping_l1"], row["mapping_energy"] = (m["mean_relative_l1"],
+                                                            m["mean_energy_error"])
+                atlases[q] = atlas
+                rows.append(row)
+                log(f"{fabric} {tier} {q}: bake {row['bake_s']:.2f} s, "
+                    f"{row['atlas_mib']:.1f} MiB, mapping {row['mapping_l1']:.3f} "
+                    f"({time.monotonic() - t0:.0f} s)")
+            for row in rows:
+                if row["fabric"] != fabric or row["tier"] != tier:
+                    continue
+                if row["quality"] == "reference":
+                    row.update(bsdf_l1=0.0, bsdf_pointwise_l1=0.0, bsdf_energy=0.0)
+                    continue
+                e = run_json([args.bake, "eval", "error", "--atlas", atlases[row["quality"]],
+                              "--reference", atlases["reference"]])
+                row.update(bsdf_l1=e["average_relative_l1"],
+                           bsdf_pointwise_l1=e["pointwise_mean_relative_l1"],
+                           bsdf_energy=e["energy_error"])
+            if not args.no_render:
+                r = render(args, fabric, tier, atlases, args.out)
+                by = {x["material"]: x for x in r["rows"]}
+                for row in rows:
+                    if row["fabric"] == fabric and row["tier"] == tier:
+                        x = by[row["quality"]]
+                        row.update(render_ratio=x["ratio"], render_s=x["median_s"],
+                                   image_rmse=x["relative_rmse"],
+                                   image_noise_floor=r["noise_floor"],
+                                   principled_s=by["principled_sheen"]["median_s"])
+                log(f"{fabric} {tier}: rendered; reference vs another seed "
+                    f"{r['noise_floor']:.4f}")
+    return rows
+
+
+COLUMNS = ("fabric", "tier", "quality", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
+           "bsdf_l1", "bsdf_pointwise_l1", "bsdf_energy", "image_rmse", "image_noise_floor",
+           "mapping_l1", "mapping_energy", "render_s", "principled_s")
+
+
+def fmt(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.3g}" if abs(v) < 1000 else f"{v:.0f}"
+    return str(v)
+
+
+def summary(rows, args):
+    """Median over fabrics per (tier, quality)."""
+    out = []
+    for tier in args.tiers:
+        for q in args.qualities:
+            sel = [r for r in rows if r["tier"] == tier and r["quality"] == q]
+            if not sel:
+                continue
+            s = {"tier": tier, "quality": q, "fabrics": len(sel)}
+            for c in COLUMNS[3:]:
+                vals = [r[c] for r in sel if r.get(c) is not None]
+                s[c] = statistics.median(vals) if vals else None
+            out.append(s)
+    return out
+
+
+def pareto(points):
+    """Indices of the points that no other point beats on both (x, y), lower is better."""
+    keep = []
+    for i, (x, y) in enumerate(points):
+        if not any((x2 <= x and y2 <= y) and (x2 < x or y2 < y) for x2, y2 in points):
+            keep.append(i)
+    return keep
+
+
+def write_outputs(rows, args):
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "trade.csv"), "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    summ = summary(rows, args)
+    meta = {"date": time.strftime("%Y-%m-%d"), "cores": os.cpu_count(), "runs": args.runs,
+            "samples": args.samples, "res": args.res, "repeats": args.repeats,
+            "light": args.light, "rendered": not args.no_render}
+    with open(os.path.join(args.out, "trade.json"), "w", encoding="utf-8") as f:
+        json.dump({"settings": meta, "rows": rows, "summary": summ}, f, indent=1)
+    cols = ("tier", "quality", "fabrics", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
+            "bsdf_l1", "image_rmse", "image_noise_floor", "mapping_l1")
+    heads = ("tier", "preset", "fabrics", "bake s", "peak RSS MiB", "atlas MiB",
+             "render / Principled", "BSDF rel. L1 vs ref.", "image rel. RMSE vs ref.",
+             "reference, other seed", "mapping rel. L1")
+    md = [f"# Loom's speed/accuracy trade ({meta['date']}, {meta['cores']} cores)", "",
+          f"Bake: median of {args.runs} whole-process runs. Render: node mode, {args.res}^2 px, "
+          f"{args.samples} samples, {args.light}-lit swatch, median of {args.repeats}, as a "
+          "ratio to a Principled BSDF with sheen in the same run. Errors against the "
+          "`reference` preset of the same tier: BSDF relative L1 over the sphere (repeat "
+          "average, C++ model), image relative RMSE (every material rendered with one seed; "
+          "'reference, other seed' is the reference rendered with another: Monte Carlo noise "
+          "alone). Mapping: model vs Cycles closures.", "",
+          "## Median over fabrics", "",
+          "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
+    for s in summ:
+        md.append("| " + " | ".join(fmt(s.get(c)) for c in cols) + " |")
+    md += ["", "## Every fabric", "", "| fabric | " + " | ".join(heads[:2] + heads[3:]) + " |",
+           "|" + "---|" * len(heads)]
+    for r in rows:
+        md.append("| " + " | ".join(fmt(r.get(c)) for c in ("fabric",) + cols[:2] + cols[3:])
+                  + " |")
+    md += ["", "Plots: `pareto.png` (error against render-time ratio)" +
+           (", `lobes.png` (fitted lobes)" if args.lobes != "none" and "raywave" in args.tiers
+            else "") + "."]
+    with open(os.path.join(args.out, "trade.md"), "w", encoding="utf-8") as f:
+        f.write("\n".join(md) + "\n")
+    plot_pareto(rows, summ, args)
+
+
+def plot_pareto(rows, summ, args):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xkey = "render_ratio" if not args.no_render else "bake_s"
+    xlabel = ("render time / Principled BSDF with sheen (same scene, one run)"
+              if not args.no_render else "bake time, s (median)")
+    panels = [("bsdf_l1", "BSDF relative L1 vs reference")]
+    if not args.no_render:
+        panels.append(("image_rmse", "image relative RMSE vs reference"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 5), squeeze=False)
+    colours = {"surface": "tab:blue", "raywave": "tab:red"}
+    markers = {"draft": "o", "preview": "s", "final": "^", "reference": "*"}
+    for ax, (ykey, ylabel) in zip(axes[0], panels):
+        for r in rows:
+            if r.get(xkey) is not None and r.get(ykey) is not None:
+                ax.scatter(r[xkey], r[ykey], color=colours[r["tier"]], alpha=0.2,
+                           marker=markers[r["quality"]], s=18)
+        for tier in args.tiers:
+            sel = [s for s in summ if s["tier"] == tier and s.get(xkey) is not None
+                   and s.get(ykey) is not None]
+            ax.plot([s[xkey] for s in sel], [s[ykey] for s in sel], color=colours[tier],
+                    label=tier)
+            for s in sel:
+                ax.scatter(s[xkey], s[ykey], color=colours[tier], marker=markers[s["quality"]],
+                           s=60, zorder=3)
+                ax.annotate(s["quality"], (s[xkey], s[ykey]), textcoords="offset points",
+                            xytext=(5, 4), fontsize=8)
+            # Each tier's errors are against its own reference (whose error is 0 by
+            # definition): the front is per tier, among the presets below the reference.
+            cand = [s for s in sel if s["quality"] != "reference"]
+            for i in pareto([(s[xkey], s[ykey]) for s in cand]):
+                ax.scatter(cand[i][xkey], cand[i][ykey], s=220, facecolors="none",
+                           edgecolors="black", zorder=4)
+        if ykey == "image_rmse":
+            for tier in args.tiers:
+                floors = [r["image_noise_floor"] for r in rows
+                          if r["tier"] == tier and r.get("image_noise_floor")]
+                if floors:
+                    ax.axhline(statistics.median(floors), color=colours[tier], ls="--", lw=1,
+                               label=f"{tier}: reference vs itself, other seed (median)")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.suptitle("Loom: error against cost per tier and preset (median over fabrics; errors "
+                 "against the tier's own reference; ringed: each tier's Pareto front)",
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(os.path.join(args.out, "pareto.png"), dpi=110)
+    plt.close(fig)
+
+
+def plot_lobes(args):
+    """Each fitted lobe, their sum and the simulation, on (elevation, azimuth) of ply space."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fabric, quality, theta, h, sigma = args.lobes.split(":")
+    atlas = os.path.join(args.out, "atlases", f"{fabric}_raywave_{quality}")
+    if not os.path.isdir(atlas):
+        spec = write_spec(fabric, "raywave", args.out)
+        subprocess.run([args.bake, "bake", spec, "-o", atlas, "--quality", quality,
+                        "--progress=none"], check=True, capture_output=True)
+    d = run_json([args.bake, "eval", "lobes", "--atlas", atlas, "--theta-i", theta, "--h", h,
+                  "--sigma", sigma, "--raw", "--snap", "--res", "48"])
+    panels = [("simulated (nearest slice)", d["raw"]["values"]), ("fitted sum", d["total"])]
+    panels += [(f"f_high lobe {i}  mu=({lb['mu1']:.3g}, {lb['mu2']:.3g})", lb["values"])
+               for i, lb in enumerate(d["high"])]
+    panels += [(f"f_refl lobe {i}  mu=({lb['mu1']:.3g}, {lb['mu2']:.3g})", lb["values"])
+               for i, lb in enumerate(d["refl"])]
+    vmax = max(float(np.max(np.asarray(v))) for _, v in panels[:2])
+    vmin = vmax * 1e-4
+    cols = 2
+    nrow = (len(panels) + cols - 1) // cols
+    fig, axes = plt.subplots(nrow, cols, figsize=(5.2 * cols, 3.1 * nrow), squeeze=False,
+                             layout="constrained")
+    im = None
+    for ax, (title, vals) in zip(axes.flat, panels):
+        arr = np.clip(np.asarray(vals, dtype=float), vmin, None)
+        im = ax.imshow(arr, origin="lower", extent=(-180, 180, -90, 90), aspect="auto",
+                       norm=matplotlib.colors.LogNorm(vmin=vmin, vmax=vmax), cmap="magma")
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("azimuth in the ply's normal plane, deg", fontsize=8)
+        ax.set_ylabel("elevation towards the ply axis, deg", fontsize=8)
+    for ax in list(axes.flat)[len(panels):]:
+        ax.axis("off")
+    fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.8, label="scattering density, 1/sr")
+    fig.suptitle(f"{fabric} ({quality}): the lobes at the grid slice nearest to theta_i {theta}"
+                 f" deg, h {h}: theta_i {d['theta_i_deg']:.1f} deg, h {d['h']:.2f}, sigma "
+                 f"{sigma}/mm\nsimulated: {d['raw']['model']}; log scale", fontsize=9)
+    fig.savefig(os.path.join(args.out, "lobes.png"), dpi=100)
+    plt.close(fig)
+
+
+def main(argv):
+    args = parse(argv)
+    os.makedirs(args.out, exist_ok=True)
+    rows = measure(args)
+    write_outputs(rows, args)
+    lobes = args.lobes != "none" and "raywave" in args.tiers
+    if lobes:
+        plot_lobes(args)
+    log(f"wrote {args.out}/trade.csv, trade.json, trade.md, pareto.png"
+        + (", lobes.png" if lobes else ""))
+    with open(os.path.join(args.out, "trade.md"), encoding="utf-8") as f:
+        print(f.read())
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
