@@ -2,7 +2,9 @@
 this checkout's addon/."""
 
 import os
+import sys
 import tempfile
+import traceback
 
 import bpy
 
@@ -34,3 +36,15 @@ def loom_api():
     import loom.api
 
     return loom.api
+
+
+def run(main):
+    """Run a script's main(): an exception is printed and exits 1 (blender -b would otherwise
+    exit 0 after a failed --python script)."""
+    try:
+        main()
+    except SystemExit:
+        raise
+    except Exception:
+        traceback.print_exc()
+        sys.exit(1)

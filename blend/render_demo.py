@@ -19,7 +19,7 @@ import time
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from loom_blend import loom_api  # noqa: E402
+from loom_blend import loom_api, run  # noqa: E402
 
 
 
@@ -74,12 +74,4 @@ def main():
     print(out)
 
 
-try:
-    main()
-except SystemExit:
-    raise
-except Exception:
-    import traceback
-
-    traceback.print_exc()
-    sys.exit(1)
+run(main)

@@ -34,7 +34,7 @@ import time
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from loom_blend import loom_api  # noqa: E402
+from loom_blend import loom_api, run  # noqa: E402
 
 FRONT_VARIANTS = ("nonoise", "perlin_nonoise", "diffraction", "perlin")
 BACK_VARIANTS = ("delta", "diffraction")
@@ -167,12 +167,4 @@ def main():
         json.dump(report, f, indent=1)
 
 
-try:
-    main()
-except SystemExit:
-    raise
-except Exception:
-    import traceback
-
-    traceback.print_exc()
-    sys.exit(1)
+run(main)

@@ -138,25 +138,34 @@ std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluat
   return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
 }
 
+std::vector<vec3> fibonacci_views(int n) {
+  std::vector<vec3> V;
+  for (int k = 0; k < n; ++k) {
+    const double z = (1.0 - 2.0 * (k + 0.5) / n) * 0.99, r = std::sqrt(1 - z * z);
+    const double phi = k * 2.399963229728653;  // the golden angle
+    V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
+  }
+  return V;
+}
+
+std::vector<vec3> sphere_grid(int n) {
+  std::vector<vec3> L;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < 2 * n; ++j) {
+      const double z = -1 + (i + 0.5) * 2.0 / n, r = std::sqrt(1 - z * z);
+      const double ph = (j + 0.5) * M_PI / n;
+      L.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
+    }
+  return L;
+}
+
 MappingError mapping_error_loop(const Atlas& a, int texels, int views, int sphere_n,
                                 const std::function<MappingPair(const SurfacePoint&, vec3)>& setup) {
   const Image& ref = a.map("ply_frame");
   // Texels on a jittered-free stratified lattice; views on a spherical Fibonacci set.
   int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
-  std::vector<vec3> V;
-  for (int k = 0; k < views; ++k) {
-    double z = (1.0 - 2.0 * (k + 0.5) / views) * 0.99, r = std::sqrt(1 - z * z);  // both sides
-    double phi = k * 2.399963229728653;
-    V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
-  }
-  std::vector<vec3> L;
-  for (int i = 0; i < sphere_n; ++i)
-    for (int j = 0; j < 2 * sphere_n; ++j) {
-      double z = -1 + (i + 0.5) * 2.0 / sphere_n, r = std::sqrt(1 - z * z);
-      double ph = (j + 0.5) * M_PI / sphere_n;
-      L.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
-    }
-  const double dw = (2.0 / sphere_n) * (M_PI / sphere_n);
+  const std::vector<vec3> V = fibonacci_views(views), L = sphere_grid(sphere_n);
+  const double dw = sphere_grid_dw(sphere_n);
   MappingError out;
   std::mutex mu;
   tbb::parallel_for(0, side * side, [&](int idx) {

@@ -67,18 +67,9 @@ PresetErrorSampling preset_error_sampling(int points, int views, int sphere_n) {
     for (int i = 0; i < side; ++i)
       s.uv.emplace_back((i + jitter(unsigned(i), unsigned(j), 0)) / side,
                         (j + jitter(unsigned(i), unsigned(j), 1)) / side);
-  for (int k = 0; k < views; ++k) {  // both sides, as mapping_error_loop
-    const double z = (1.0 - 2.0 * (k + 0.5) / views) * 0.99, r = std::sqrt(1 - z * z);
-    const double phi = k * 2.399963229728653;
-    s.views.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
-  }
-  for (int i = 0; i < sphere_n; ++i)
-    for (int j = 0; j < 2 * sphere_n; ++j) {
-      const double z = -1 + (i + 0.5) * 2.0 / sphere_n, r = std::sqrt(1 - z * z);
-      const double ph = (j + 0.5) * M_PI / sphere_n;
-      s.lights.push_back(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
-    }
-  s.dw = (2.0 / sphere_n) * (M_PI / sphere_n);
+  s.views = fibonacci_views(views);
+  s.lights = sphere_grid(sphere_n);
+  s.dw = sphere_grid_dw(sphere_n);
   return s;
 }
 

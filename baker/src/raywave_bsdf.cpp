@@ -789,7 +789,8 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
                                  int texels, int sphere_n) {
   const Image& ref = a.map("ply_frame");
   const int side = std::max(1, int(std::lround(std::sqrt(double(std::max(texels, 1))))));
-  const double dw = (2.0 / sphere_n) * (M_PI / sphere_n);
+  const double dw = sphere_grid_dw(sphere_n);
+  const std::vector<vec3> lights = sphere_grid(sphere_n);
   std::vector<DirectionalAlbedo> per(size_t(side) * side);
   tbb::parallel_for(0, side * side, [&](int idx) {
     const int ix = int((idx % side + 0.5) / side * ref.width);
@@ -797,15 +798,11 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, 
     const SurfacePoint p = texel_surface(a, ix, iy);
     const RaywavePoint pt(d, p, wo, e, false);
     DirectionalAlbedo& r = per[size_t(idx)];
-    for (int i = 0; i < sphere_n; ++i)
-      for (int j = 0; j < 2 * sphere_n; ++j) {
-        const double z = -1 + (i + 0.5) * 2.0 / sphere_n, rr = std::sqrt(1 - z * z);
-        const double ph = (j + 0.5) * M_PI / sphere_n;
-        const vec3 l(float(rr * std::cos(ph)), float(rr * std::sin(ph)), float(z));
-        const std::array<float, 3> f = pt.eval(l);
-        auto& acc = (z > 0) == (wo.z > 0) ? r.reflect : r.transmit;
-        for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
-      }
+    for (const vec3& l : lights) {
+      const std::array<float, 3> f = pt.eval(l);
+      auto& acc = (l.z > 0) == (wo.z > 0) ? r.reflect : r.transmit;
+      for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
+    }
     r.gap = std::clamp(p.gap, 0.0f, 1.0f);
     const RaywavePoint pc(d, p, wo, Evaluator::Closures);  // (named: it owns the list)
     for (const RaywaveClosure& cl : pc.closures())

@@ -47,6 +47,14 @@ bool parse_vec(const std::string& s, int n, std::vector<double>& out) {
   return int(out.size()) == n;
 }
 
+/// Index of the grid value nearest to x (the first of equals).
+size_t nearest_node(const std::vector<double>& g, double x) {
+  size_t best = 0;
+  for (size_t i = 1; i < g.size(); ++i)
+    if (std::fabs(g[i] - x) < std::fabs(g[best] - x)) best = i;
+  return best;
+}
+
 /// The ray simulation of the grid slice of an atlas's ply tables nearest to (theta_i, h),
 /// identical to the bake's (same seed), at sigma = 0 and `sigma`: what eval raywave --raw and
 /// eval lobes --raw compare the fit with. For a multi-ply yarn this is one ply's scattering
@@ -77,13 +85,7 @@ NearestSlice simulate_nearest_slice(const loom::Atlas& atlas, const loom::AsgTab
   const loom::YarnSpec& y = yarn == "weft" ? res.spec.weft : res.spec.warp;
   NearestSlice out;
   out.settings = loom::ply_sim_settings(res.spec.quality);
-  auto nearest = [](const std::vector<double>& g, double x) {
-    size_t best = 0;
-    for (size_t i = 1; i < g.size(); ++i)
-      if (std::fabs(g[i] - x) < std::fabs(g[best] - x)) best = i;
-    return best;
-  };
-  const size_t m = nearest(high.theta_i, theta_i), hn = nearest(high.h, h);
+  const size_t m = nearest_node(high.theta_i, theta_i), hn = nearest_node(high.h, h);
   out.settings.sigmas = {0.0};
   if (sigma > 0) out.settings.sigmas.push_back(sigma);
   auto p = loom::ply_params_from_yarn(y);
@@ -700,15 +702,9 @@ int main(int argc, char** argv) {
       const auto atlas = loom::load_atlas(lobes_atlas);
       const auto t = loom::load_ply_tables(atlas, lobes_yarn);
       double th = lobes_theta * M_PI / 180, lh = lobes_h;
-      if (lobes_snap) {
-        auto nearest = [](const std::vector<double>& g, double x) {
-          double best = g.front();
-          for (double v : g)
-            if (std::fabs(v - x) < std::fabs(best - x)) best = v;
-          return best;
-        };
-        th = nearest(t.high.theta_i, th), lh = nearest(t.high.h, lh);
-      }
+      if (lobes_snap)
+        th = t.high.theta_i[nearest_node(t.high.theta_i, th)],
+        lh = t.high.h[nearest_node(t.high.h, lh)];
       const auto high = loom::asg_table_lobes(t.high, th, lh, lobes_sigma);
       const auto refl = loom::asg_table_lobes(t.refl, th, lh, 0);
       // Ply space: z along the ply axis (the ASG frame of Eq. S.2); elevation from the ply's

@@ -3,8 +3,10 @@
 // the same texels as the shaders and both through the shared shading math.
 #pragma once
 #include <array>
+#include <cmath>
 #include <functional>
 #include <utility>
+#include <vector>
 
 #include "loom/atlas.h"
 #include "loom/shading.h"
@@ -43,6 +45,13 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p, shading::v
 /// Mean of f over all texels of the repeat (what a pixel covering many repeats sees).
 std::array<float, 3> eval_bsdf_average(const Atlas& a, shading::vec3 wi, shading::vec3 wo,
                                        Evaluator e, Backend backend = Backend::Nodes);
+
+/// The directions of Loom's quadratures over the sphere. Views: a spherical Fibonacci set of
+/// n directions on both sides of the cloth (|z| <= 0.99). Lights: the midpoint grid of
+/// n x 2n cells uniform in z and phi, each of solid angle sphere_grid_dw(n).
+std::vector<shading::vec3> fibonacci_views(int n);
+std::vector<shading::vec3> sphere_grid(int n);
+inline double sphere_grid_dw(int n) { return (2.0 / n) * (M_PI / n); }
 
 /// The closure-mapping error: for texels spread over the repeat and views V over the whole sphere
 /// (front and back of the cloth), the relative L1 distance over the sphere of light directions,
