@@ -18,7 +18,7 @@ from . import scene_needs as _scene_needs
 from .bakery import LoomBakeError as LoomError, read_manifest
 
 __all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign",
-           "scene_needs"]
+           "scene_needs", "update_fibers", "remove_fibers"]
 
 _ADDON = __package__
 
@@ -124,3 +124,24 @@ def scene_needs(obj, yarn_um: float, ply_um: float, plies: int, repeat_um: float
     weave repeat's length along u and ``repeats_per_uv`` the material's Scale."""
     return _scene_needs.scene_needs(obj, scene or bpy.context.scene, yarn_um, ply_um, plies,
                                     repeat_um, repeats_per_uv).as_dict()
+
+
+def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
+                  cache_dir: str | None = None, max_vertices: int | None = None) -> dict:
+    """Fiber tier: real fibers (hair curves) on ``obj`` where ``camera`` (default the scene's)
+    resolves them; call again after moving the camera. Returns what was done (see
+    ``fibers.update_fibers``); raises LoomError with the reason, changing nothing, when it
+    cannot (no Loom material, no UV map, a region over ``max_vertices``)."""
+    from . import fibers
+    exe = find_loom_bake(loom_bake)
+    if exe is None:
+        raise LoomError("loom-bake not found (preferences, $LOOM_BAKE or PATH)")
+    return fibers.update_fibers(obj, scene, camera, loom_bake=exe,
+                                cache_dir=resolve_cache_dir(cache_dir),
+                                max_vertices=max_vertices or fibers.DEFAULT_MAX_VERTICES)
+
+
+def remove_fibers(obj) -> bool:
+    """Remove the fibers update_fibers made for ``obj``; True if there were any."""
+    from . import fibers
+    return fibers.remove_fibers(obj)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 
 import bpy
+from mathutils import Matrix
 
 from . import node_mode, node_mode_raywave, osl_paths, osl_source
 from .bakery import LoomBakeError, read_manifest
@@ -313,15 +314,15 @@ def set_scale(mat, scale: float) -> bool:
 # ----------------------------------------------------------------------------------- scale
 
 
-def uv_meters_per_unit(obj) -> float | None:
+def uv_meters_per_unit(obj, local: bool = False) -> float | None:
     """World length of one UV unit on ``obj`` (sqrt of world area over UV area, summed over the
-    mesh's triangles, modifiers ignored), or None without UVs or area. Pure Python: Blender
-    builds without numpy exist (Debian's)."""
+    mesh's triangles, modifiers ignored), or None without UVs or area; ``local``: in the
+    object's own space instead. Pure Python: Blender builds without numpy exist (Debian's)."""
     mesh = obj.data if obj is not None and obj.type == "MESH" else None
     if mesh is None or mesh.uv_layers.active is None:
         return None
     mesh.calc_loop_triangles()
-    m = obj.matrix_world
+    m = Matrix.Identity(4) if local else obj.matrix_world
     co = [m @ v.co for v in mesh.vertices]
     uv = mesh.uv_layers.active.data
     loops = mesh.loops

@@ -331,5 +331,49 @@ class LOOM_OT_scene_needs(Operator):
         return {"FINISHED"}
 
 
+class LOOM_OT_fibers_update(Operator):
+    """Show real fibers (hair curves) where the camera resolves them on this cloth (fiber
+    tier); run again after moving the camera"""
+
+    bl_idname = "loom.fibers_update"
+    bl_label = "Fibers from Camera"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        mat = context.material
+        return (_poll_loom_material(cls, context) and bool(mat.loom.atlas_dir)
+                and context.object is not None and context.object.type == "MESH")
+
+    def execute(self, context):
+        from . import api
+        try:
+            res = api.update_fibers(context.object, context.scene)
+        except bakery.LoomBakeError as exc:
+            self.report({"ERROR"}, f"Loom: {exc}")
+            return {"CANCELLED"}
+        context.material.loom.status = res["reason"]
+        self.report({"INFO"}, f"Loom: {res['reason']}")
+        return {"FINISHED"}
+
+
+class LOOM_OT_fibers_remove(Operator):
+    """Remove the fibers Loom made for this cloth"""
+
+    bl_idname = "loom.fibers_remove"
+    bl_label = "Remove Fibers"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        from . import fibers
+        return context.object is not None and fibers.fibers_object(context.object) is not None
+
+    def execute(self, context):
+        from . import fibers
+        fibers.remove_fibers(context.object)
+        return {"FINISHED"}
+
+
 classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new,
-           LOOM_OT_scene_needs)
+           LOOM_OT_scene_needs, LOOM_OT_fibers_update, LOOM_OT_fibers_remove)

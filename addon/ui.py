@@ -79,6 +79,9 @@ class MATERIAL_PT_loom(Panel):
             if s.status:
                 box.label(text=s.status)
             box.operator("loom.scene_needs", icon="VIEWZOOM")
+            row = box.row(align=True)
+            row.operator("loom.fibers_update", icon="STRANDS")
+            row.operator("loom.fibers_remove", text="", icon="X")
             for line in s.needs_report.splitlines():
                 box.label(text=line)
             # A Script node renders black where OSL cannot run (e.g. after switching the

@@ -96,8 +96,10 @@ Vec3d fiber_in_yarn(const PlyParams& p, uint32_t ply, const Fiber& f, double z) 
 // ---- Flyaways ----
 
 int64_t migration_cycle(const PlyParams& p, const Fiber& f, double z) {
+  // Cycles run from one migration minimum (cos = -1) to the next, so a loop's radius leaves and
+  // rejoins the regular fiber continuously at r_min R_j.
   double phase = p.s * z / p.pitch + f.theta0 / (2 * M_PI);
-  return int64_t(std::floor(phase));
+  return int64_t(std::floor(phase + 0.5));
 }
 
 double loop_probability(const PlyParams& p) {
@@ -121,37 +123,32 @@ double fiber_radius_with_loops(const PlyParams& p, uint32_t yarn, uint32_t ply, 
   return fiber_radius_at(q, f, z);
 }
 
+namespace {
+// Hairs draw from the ply's own stream: fiber index kHairStream, numbers 0, 1, 2, ...
+constexpr uint32_t kHairStream = 0xFFFFF;  // beyond any regular fiber index
+}  // namespace
+
+HairCount ply_hair_count(const PlyParams& p, uint32_t yarn, uint32_t ply, double length) {
+  HairCount c;
+  if (p.hair_density <= 0 || length <= 0) return c;
+  uint32_t k = 0;
+  c.count = poisson_count(p.hair_density * length,
+                          [&] { return fiber_random(yarn, ply, kHairStream, k++); });
+  c.stream_offset = k;
+  return c;
+}
+
+Hair make_hair(const PlyParams& p, uint32_t yarn, uint32_t ply, double length,
+               const HairCount& c, uint32_t j) {
+  uint32_t k = c.stream_offset + 6 * j;
+  return draw_hair(p, 0.0, length, [&] { return fiber_random(yarn, ply, kHairStream, k++); });
+}
+
 std::vector<Hair> make_ply_hairs(const PlyParams& p, uint32_t yarn, uint32_t ply, double length) {
   std::vector<Hair> out;
-  if (p.hair_density <= 0 || length <= 0) return out;
-  // Hairs draw from the ply's own stream: fiber index kHairStream, numbers 0, 1, 2, ...
-  constexpr uint32_t kHairStream = 0xFFFFF;  // beyond any regular fiber index
-  uint32_t k = 0;
-  auto rnd = [&] { return fiber_random(yarn, ply, kHairStream, k++); };
-  // Poisson count by inversion (the mean is modest: density x length).
-  double mean = p.hair_density * length, L = std::exp(-std::min(mean, 700.0)), prod = rnd();
-  int n = 0;
-  if (mean > 500) {  // normal approximation for long plies
-    double u1 = std::max(rnd(), 1e-300), u2 = rnd();
-    n = std::max(0, int(std::lround(mean + std::sqrt(mean) * std::sqrt(-2 * std::log(u1)) *
-                                               std::cos(2 * M_PI * u2))));
-  } else {
-    while (prod > L) {
-      ++n;
-      prod *= rnd();
-    }
-  }
-  out.reserve(size_t(n));
-  for (int j = 0; j < n; ++j) {
-    Hair h;
-    h.z1 = length * rnd();
-    h.z2 = h.z1 + p.hair_length_min + (p.hair_length_max - p.hair_length_min) * rnd();
-    h.R1 = p.ply_radius * (p.r_min + (1 - p.r_min) * rnd());
-    h.R2 = p.ply_radius * (1 + (p.hair_r_max - 1) * rnd());
-    h.theta1 = 2 * M_PI * rnd();
-    h.theta2 = h.theta1 + p.hair_max_turn * (2 * rnd() - 1);
-    out.push_back(h);
-  }
+  HairCount c = ply_hair_count(p, yarn, ply, length);
+  out.reserve(c.count);
+  for (uint32_t j = 0; j < c.count; ++j) out.push_back(make_hair(p, yarn, ply, length, c, j));
   return out;
 }
 

@@ -1,10 +1,12 @@
 // loom-bake: bake a fabric spec into an atlas, inspect an atlas, and probe its BSDF.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fmt/format.h>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
@@ -13,6 +15,8 @@
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
 #include "loom/evaluator.h"
+#include "loom/fiber_lookup.h"
+#include "loom/fiber_region.h"
 #include "loom/raywave_bsdf.h"
 #include "loom/ply_scattering.h"
 #include "loom/ply_tables.h"
@@ -169,6 +173,19 @@ int main(int argc, char** argv) {
   auto* presets = app.add_subcommand("presets", "list the built-in presets, or print one");
   std::string preset_name;
   presets->add_option("name", preset_name, "preset to print as JSON");
+
+  auto* fibers_cmd = app.add_subcommand(
+      "fibers", "realize the fibers of a region of the fabric as curves (fiber tier)");
+  std::string fr_spec, fr_region, fr_out;
+  uint64_t fr_max = loom::kDefaultMaxFiberVertices;
+  fibers_cmd->add_option("--spec", fr_spec, "fabric spec file or preset name")->required();
+  fibers_cmd->add_option("--region", fr_region,
+                         "X0,Y0,X1,Y1 in um of the fabric plane (x along the warp)")
+      ->required();
+  fibers_cmd->add_option("--out", fr_out, "directory to write (manifest.json and the curves)")
+      ->required();
+  fibers_cmd->add_option("--max-vertices", fr_max, "refuse regions needing more vertices")
+      ->check(CLI::Range(uint64_t(2), uint64_t(2000000000)));
 
   auto* eval = app.add_subcommand("eval", "probe an evaluator");
   eval->require_subcommand(1);
@@ -343,6 +360,28 @@ int main(int argc, char** argv) {
   colour->add_option("--atlas", colour_atlas, "ray-wave atlas")->required();
   colour->add_option("--yarn", colour_yarn, "warp | weft (whose ply model)")
       ->check(CLI::IsMember({"warp", "weft"}));
+
+  auto* fibers = eval->add_subcommand(
+      "fibers", "look up seeded points in an N-yarn woven patch both by the fiber tier's "
+                "realization-minimising structures and by full realization; print JSON");
+  std::string fibers_spec, fibers_only = "both", fibers_hairs = "hybrid";
+  int fibers_yarns = 10, fibers_points = 10000, fibers_bins = 64;
+  uint64_t fibers_seed = 1;
+  fibers->add_option("--spec", fibers_spec, "fabric spec file or preset name")->required();
+  fibers->add_option("--yarns", fibers_yarns, "yarns in the patch (warp and weft together)")
+      ->check(CLI::Range(2, loom::kMaxPatchYarns));
+  fibers->add_option("--points", fibers_points, "seeded points to look up")
+      ->check(CLI::Range(1, 100000000));
+  fibers->add_option("--seed", fibers_seed, "seed of the points");
+  fibers->add_option("--bins", fibers_bins, "azimuth bins of Algorithm 2")
+      ->check(CLI::Range(1, 4096));
+  fibers->add_option("--only", fibers_only,
+                     "both | minimising | realized (build and time one of them alone, for "
+                     "whole-process memory)")
+      ->check(CLI::IsMember({"both", "minimising", "realized"}));
+  fibers->add_option("--hairs", fibers_hairs,
+                     "hybrid (z-binning, section 4.4.2) | realization-free (Algorithm 3)")
+      ->check(CLI::IsMember({"hybrid", "realization-free"}));
 
   try {
     app.parse(argc, argv);
@@ -836,6 +875,113 @@ int main(int argc, char** argv) {
                                              : "single ply"},
                       {"theta_i_deg", sl.theta_i * 180 / M_PI}, {"h", sl.h},
                       {"rays", sl.settings.rays_per_slice}};
+      }
+      std::cout << out.dump() << std::endl;
+      return 0;
+    }
+    if (*fibers_cmd) {
+      auto res = loom::load_spec(fr_spec);
+      if (!res.ok()) return report_spec_errors(fr_spec, res.errors);
+      std::vector<double> rv;
+      if (!parse_vec(fr_region, 4, rv)) {
+        std::cerr << "error: --region: expected X0,Y0,X1,Y1 (four finite numbers, um)\n";
+        return 2;
+      }
+      loom::FiberRegion reg{rv[0], rv[1], rv[2], rv[3]};
+      auto t0 = std::chrono::steady_clock::now();
+      loom::FiberCurves curves;
+      try {
+        curves = loom::realize_fiber_region(res.spec, reg, fr_max);
+      } catch (const std::invalid_argument& e) {
+        std::cerr << "error: --" << e.what() << "\n";
+        return 2;
+      }
+      loom::write_fiber_curves(curves, res.spec, reg, fr_out);
+      size_t hairs = 0;
+      for (auto h : curves.hair) hairs += h;
+      std::cout << json{{"out", fr_out},
+                        {"yarns", curves.yarns},
+                        {"curves", curves.curves()},
+                        {"hair_curves", hairs},
+                        {"vertices", curves.vertices()},
+                        {"bytes", curves.bytes()},
+                        {"seconds", std::chrono::duration<double>(
+                                        std::chrono::steady_clock::now() - t0)
+                                        .count()}}
+                       .dump()
+                << std::endl;
+      return 0;
+    }
+    if (*fibers) {
+      auto res = loom::load_spec(fibers_spec);
+      if (!res.ok()) return report_spec_errors(fibers_spec, res.errors);
+      using clock = std::chrono::steady_clock;
+      auto secs = [](clock::time_point a) {
+        return std::chrono::duration<double>(clock::now() - a).count();
+      };
+      auto patch = loom::make_woven_patch(res.spec, fibers_yarns);
+      const bool do_min = fibers_only != "realized", do_real = fibers_only != "minimising";
+      if (do_real) {  // refuse a realization that cannot fit rather than run out of memory
+        double verts = 0;
+        for (const auto& y : patch)
+          verts += double(std::max(y.ply.plies, 1)) * y.ply.fibers *
+                   (y.curve.length() / loom::fiber_step(y.ply) + 2);
+        const double gib = verts * 36 / (1u << 30), limit = 12;
+        if (gib > limit) {
+          std::cerr << fmt::format(
+              "error: --yarns: full realization of {} yarns needs about {:.1f} GiB ({:.3g} "
+              "vertices), more than the {} GiB allowed; use --only minimising or fewer yarns\n",
+              fibers_yarns, gib, verts, limit);
+          return 2;
+        }
+      }
+      auto pts = loom::fiber_test_points(patch, fibers_points, fibers_seed);
+      loom::FiberLookupOptions fopt;
+      fopt.azimuth_bins = fibers_bins;
+      fopt.realization_free_hairs = fibers_hairs == "realization-free";
+      std::unique_ptr<loom::FiberLookup> minimising;
+      std::unique_ptr<loom::RealizedFibers> realized;
+      json out{{"spec", res.spec.name}, {"yarns", fibers_yarns}, {"points", fibers_points},
+               {"fibers_per_yarn", res.spec.warp.plies * res.spec.warp.fibers_per_ply},
+               {"hairs_method", fibers_hairs}};
+      std::vector<loom::FiberHit> a, b;
+      if (do_min) {
+        auto t0 = clock::now();
+        minimising = std::make_unique<loom::FiberLookup>(patch, fopt);
+        out["build_seconds_minimising"] = secs(t0);
+        t0 = clock::now();
+        a.reserve(pts.size());
+        for (auto& p : pts) a.push_back(minimising->lookup(p));
+        out["seconds_minimising"] = secs(t0);
+        out["bytes_minimising"] = minimising->bytes();
+        out["hairs"] = minimising->hair_count();
+      }
+      if (do_real) {
+        auto t0 = clock::now();
+        realized = std::make_unique<loom::RealizedFibers>(patch, fopt);
+        out["build_seconds_realized"] = secs(t0);
+        t0 = clock::now();
+        b.reserve(pts.size());
+        for (auto& p : pts) b.push_back(realized->lookup(p));
+        out["seconds_realized"] = secs(t0);
+        out["bytes_realized"] = realized->bytes();
+        out["realized_vertices"] = realized->vertex_count();
+      }
+      const auto& hits = do_min ? a : b;
+      size_t covered = 0, hair = 0;
+      for (auto& h : hits) covered += h.covered, hair += h.covered && h.hair;
+      out["covered"] = covered;
+      out["covered_by_hair"] = hair;
+      if (do_min && do_real) {
+        size_t mismatches = 0;
+        for (size_t i = 0; i < pts.size(); ++i)
+          mismatches += !a[i].same_fiber(b[i]) || a[i].distance != b[i].distance;
+        out["mismatches"] = mismatches;
+        out["memory_ratio"] = double(realized->bytes()) / double(minimising->bytes());
+        out["time_ratio"] = out["seconds_minimising"].get<double>() /
+                            std::max(out["seconds_realized"].get<double>(), 1e-9);
+      } else {
+        out["mismatches"] = nullptr;
       }
       std::cout << out.dump() << std::endl;
       return 0;

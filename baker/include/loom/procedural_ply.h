@@ -12,6 +12,7 @@
 // a Kolmogorov-Smirnov distance of 0.41 against Eq. 3). Loom uses a counter-based generator
 // instead: SplitMix64 of the key, the same consistency without the correlation.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -97,7 +98,9 @@ Vec3d fiber_in_yarn(const PlyParams& p, uint32_t ply, const Fiber& f, double z);
 
 // ---- Flyaways ----
 
-/// Migration cycle of a fiber at height z (Eq. 2's cosine phase / 2 pi, floored).
+/// Migration cycle of a fiber at height z: Eq. 2's cosine phase / 2 pi + 1/2, floored, so that a
+/// cycle starts and ends at the migration minimum (choice: the text does not say where a cycle
+/// starts; starting at the minimum keeps a mutated cycle's radius continuous).
 int64_t migration_cycle(const PlyParams& p, const Fiber& f, double z);
 /// Probability that one migration cycle is mutated into a loop: rho_loop / (fibers * cycles per
 /// um), i.e. m_loop / (m k) of section 4.4.1 with m_loop = rho_loop h, k = s h / a cycles.
@@ -113,8 +116,55 @@ double fiber_radius_with_loops(const PlyParams& p, uint32_t yarn, uint32_t ply, 
 struct Hair {
   double z1 = 0, z2 = 0, R1 = 0, R2 = 0, theta1 = 0, theta2 = 0;
 };
-/// The hairs of ply `ply` of yarn `yarn` over z in [0, length): their count is Poisson with mean
-/// hair_density * length (consistently seeded), each hair from its own random numbers.
+/// A Poisson count of the given mean from uniform numbers rnd() in [0, 1): by inversion, or the
+/// normal approximation above a mean of 500.
+template <class Rnd>
+uint32_t poisson_count(double mean, Rnd&& rnd) {
+  if (!(mean > 0)) return 0;
+  if (mean > 500) {
+    double u1 = std::max(rnd(), 1e-300), u2 = rnd();
+    double n = mean + std::sqrt(mean) * std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
+    return uint32_t(std::max(0.0, std::round(n)));
+  }
+  double L = std::exp(-mean), prod = rnd();
+  uint32_t n = 0;
+  while (prod > L) {
+    ++n;
+    prod *= rnd();
+  }
+  return n;
+}
+
+/// One hair of Eq. 4 from six uniform numbers rnd(): z1 uniform on [z_start, z_start + length),
+/// its length uniform on [hair_length_min, hair_length_max], R1 in [r_min, 1] R_ply, R2 in
+/// [1, hair_r_max] R_ply, theta1 uniform, theta2 within hair_max_turn of it.
+template <class Rnd>
+void draw_hair_shape(const PlyParams& p, Hair& h, Rnd&& rnd) {  ///< R1, R2, theta1, theta2
+  h.R1 = p.ply_radius * (p.r_min + (1 - p.r_min) * rnd());
+  h.R2 = p.ply_radius * (1 + (p.hair_r_max - 1) * rnd());
+  h.theta1 = 2 * M_PI * rnd();
+  h.theta2 = h.theta1 + p.hair_max_turn * (2 * rnd() - 1);
+}
+template <class Rnd>
+Hair draw_hair(const PlyParams& p, double z_start, double length, Rnd&& rnd) {
+  Hair h;
+  h.z1 = z_start + length * rnd();
+  h.z2 = h.z1 + p.hair_length_min + (p.hair_length_max - p.hair_length_min) * rnd();
+  draw_hair_shape(p, h, rnd);
+  return h;
+}
+
+/// How many hairs ply `ply` of yarn `yarn` has over z in [0, length) (Poisson with mean
+/// hair_density * length, consistently seeded), and where in the ply's random stream the hairs'
+/// own numbers start (six per hair), so that one hair can be realized alone (section 4.4.2).
+struct HairCount {
+  uint32_t count = 0, stream_offset = 0;
+};
+HairCount ply_hair_count(const PlyParams& p, uint32_t yarn, uint32_t ply, double length);
+/// Hair j < c.count of the ply, from its own six random numbers.
+Hair make_hair(const PlyParams& p, uint32_t yarn, uint32_t ply, double length,
+               const HairCount& c, uint32_t j);
+/// All hairs of the ply: make_hair for j < ply_hair_count(...).count.
 std::vector<Hair> make_ply_hairs(const PlyParams& p, uint32_t yarn, uint32_t ply,
                                  double length);
 /// Eq. 4: the hair's centre in ply space at z in [z1, z2] (R and theta interpolated linearly).
