@@ -9,7 +9,7 @@ import sys
 
 import bpy
 
-from . import api, atlas_check, operators, osl_paths, preferences, properties, ui
+from . import api, atlas_check, fibers, operators, osl_paths, preferences, properties, ui
 
 _classes = (*preferences.classes, *properties.classes, *operators.classes, *ui.classes)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(_classes)
@@ -25,6 +25,7 @@ def register():
     properties.register_props()
     osl_paths.register()
     atlas_check.register()
+    fibers.register()
     for name, module in _ALIASES.items():
         if __name__ != "loom":
             sys.modules.setdefault(name, module)
@@ -34,6 +35,7 @@ def unregister():
     for name, module in _ALIASES.items():
         if __name__ != "loom" and sys.modules.get(name) is module:
             del sys.modules[name]
+    fibers.unregister()
     atlas_check.unregister()
     osl_paths.unregister()
     properties.unregister_props()

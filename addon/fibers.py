@@ -123,17 +123,18 @@ def _visible_part(planes, eye):
     return [w for _, w in poly]
 
 
-def resolved_region(obj, scene, camera, um_per_uv: float, fiber_um: float, budget=150_000):
+def resolved_region(obj, mesh, scene, camera, um_per_uv: float, fiber_um: float,
+                    budget=150_000):
     """UV bounding box (u0, v0, u1, v1) of the parts of the mesh inside the camera's view whose
     fibers are at least RESOLVED_PX wide, or None; and the widest fiber footprint seen, in
     pixels. Each triangle in view is sampled on a barycentric grid (finer for meshes of few
     triangles, ``budget`` samples in all) besides the corners of its visible part; the box grows
-    by one grid step so that it holds the resolved part whole."""
-    world_per_uv = _material.uv_meters_per_unit(obj)
+    by one grid step so that it holds the resolved part whole. ``mesh``: obj's evaluated mesh
+    (modifiers, shape keys, simulation), the surface the fibers are placed on."""
+    world_per_uv = _material.uv_meters_per_unit(obj, mesh=mesh)
     if not world_per_uv:
         return None, 0.0
     m_per_um = world_per_uv / um_per_uv  # world metres per fabric micrometre
-    mesh = obj.data
     uv = mesh.uv_layers.active.data
     mw = obj.matrix_world
     to_cam = camera.matrix_world.inverted()
@@ -183,11 +184,26 @@ def remove_fibers(obj) -> bool:
     mod = fo.modifiers.get(MODIFIER)
     group = mod.node_group if mod is not None else None
     bpy.data.objects.remove(fo)
-    if data is not None and data.users == 0:
-        bpy.data.hair_curves.remove(data)
+    _remove_unused(data, group)
+    return True
+
+
+def ev_uv_name(obj) -> str:
+    """The UV map the fibers are placed through: the mesh's active one."""
+    return obj.data.uv_layers.active.name
+
+
+def _remove_unused(curves, group) -> None:
+    """Remove a replaced Curves data-block (with its hair materials) and node group once nothing
+    uses them."""
+    if curves is not None and curves.users == 0:
+        mats = [m for m in curves.materials if m is not None]
+        bpy.data.hair_curves.remove(curves)
+        for m in mats:
+            if m.users == 0:
+                bpy.data.materials.remove(m)
     if group is not None and group.users == 0:
         bpy.data.node_groups.remove(group)
-    return True
 
 
 def _read(path: str, typecode: str) -> array:
@@ -198,8 +214,9 @@ def _read(path: str, typecode: str) -> array:
 
 
 def _hair_material(name: str, manifest: dict, yarn: str):
-    """Principled Hair BSDF (Chiang) for one yarn system."""
-    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    """Principled Hair BSDF (Chiang) for one yarn system (a new material; the caller removes
+    the one it replaces)."""
+    mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nt = mat.node_tree
     nt.nodes.clear()
@@ -229,10 +246,8 @@ def _hair_material(name: str, manifest: dict, yarn: str):
 
 
 def _surface_group(name: str, surface, uv_name: str, uv_per_um: float, height_per_um: float):
-    """Geometry Nodes: fabric-micrometre curve points onto the surface through its UV map."""
-    ng = bpy.data.node_groups.get(name)
-    if ng is not None:
-        bpy.data.node_groups.remove(ng)
+    """Geometry Nodes: fabric-micrometre curve points onto the surface through its UV map (a new
+    group; the caller removes the one it replaces)."""
     ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
     ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
@@ -281,14 +296,15 @@ def _surface_group(name: str, surface, uv_name: str, uv_per_um: float, height_pe
     invalid = n.new("FunctionNodeBooleanMath")
     invalid.operation = "NOT"
     link(samples[0].outputs[1], invalid.inputs[0])
-    setp = n.new("GeometryNodeSetPosition")
-    link(gi.outputs[0], setp.inputs["Geometry"])
-    link(add.outputs[0], setp.inputs["Position"])
+    # (Deleted first: every field here reads the points' fabric-micrometre positions.)
     drop = n.new("GeometryNodeDeleteGeometry")
     drop.domain = "POINT"
-    link(setp.outputs[0], drop.inputs["Geometry"])
+    link(gi.outputs[0], drop.inputs["Geometry"])
     link(invalid.outputs[0], drop.inputs["Selection"])
-    link(drop.outputs[0], go.inputs[0])
+    setp = n.new("GeometryNodeSetPosition")
+    link(drop.outputs[0], setp.inputs["Geometry"])
+    link(add.outputs[0], setp.inputs["Position"])
+    link(setp.outputs[0], go.inputs[0])
     return ng
 
 
@@ -319,7 +335,19 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
     um_per_uv = repeats * size_um
     spec = manifest.get("spec", {})
     fiber_um = min(float(spec.get(y, {}).get("fiber_diameter_um", 15.0)) for y in ("warp", "weft"))
-    box, finest = resolved_region(obj, scene, camera, um_per_uv, fiber_um)
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    ev_mesh = ev.to_mesh()
+    try:
+        if ev_mesh.uv_layers.active is None:
+            raise LoomBakeError(f"fibers: {obj.name}'s evaluated mesh has no UV map")
+        box, finest = resolved_region(obj, ev_mesh, scene, camera, um_per_uv, fiber_um)
+        # Object-space metres per fabric micrometre on the evaluated surface (the modifier works
+        # in the fibers object's space, the surface's: RELATIVE object info, parented with
+        # identity).
+        local_per_uv = _material.uv_meters_per_unit(obj, local=True, mesh=ev_mesh)
+    finally:
+        ev.to_mesh_clear()
     result = {"curves": 0, "vertices": 0, "hair_curves": 0, "region_um": None,
               "finest_px": finest, "object": None}
     if box is None:
@@ -332,7 +360,9 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
     cache = cache_dir or bakery.default_cache_dir()
     os.makedirs(cache, exist_ok=True)
     spec_json = json.dumps(spec, sort_keys=True)
-    key = hashlib.sha256((spec_json + json.dumps([round(r, 3) for r in region])).encode())
+    st = os.stat(exe)  # another loom-bake may realize other fibers: not the same cache entry
+    key = hashlib.sha256((spec_json + json.dumps([round(r, 3) for r in region]) +
+                          f"{st.st_size}:{st.st_mtime_ns}").encode())
     out_dir = os.path.join(cache, "fibers-" + key.hexdigest()[:16])
     spec_path = os.path.join(cache, "fibers-spec-" + hashlib.sha256(spec_json.encode())
                              .hexdigest()[:16] + ".json")
@@ -354,42 +384,118 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
         result["reason"] = "no fibers in the region"
         return result
 
-    # Object-space metres per fabric micrometre (the modifier works in the fibers object's space,
-    # which is the surface's: RELATIVE object info, parented with identity).
-    m_per_um = _material.uv_meters_per_unit(obj, local=True) / um_per_uv
-    curves = bpy.data.hair_curves.new(obj.name + OBJECT_SUFFIX)
-    curves.add_curves([first[i + 1] - first[i] for i in range(n)])
-    curves.position_data.foreach_set("vector", points)
-    rad = curves.attributes.get("radius") or curves.attributes.new("radius", "FLOAT", "POINT")
-    per_point = array("f")
-    for i in range(n):
-        per_point.extend([radius[i] * m_per_um] * (first[i + 1] - first[i]))
-    rad.data.foreach_set("value", per_point)
-    mi = curves.attributes.new("material_index", "INT", "CURVE")
-    mi.data.foreach_set("value", [0 if w else 1 for w in warp])
-    for yarn in ("warp", "weft"):
-        curves.materials.append(_hair_material(f"{mat.name} Fibers ({yarn})", manifest, yarn))
+    if not local_per_uv:
+        raise LoomBakeError(f"fibers: {obj.name}'s UV map has no area")
+    m_per_um = local_per_uv / um_per_uv
+    # Build everything new first; only then swap it in and remove what it replaces, so that a
+    # failure on the way leaves the scene as it was.
+    new = {"curves": None, "materials": [], "group": None}
+    try:
+        curves = new["curves"] = bpy.data.hair_curves.new(obj.name + OBJECT_SUFFIX)
+        curves.add_curves([first[i + 1] - first[i] for i in range(n)])
+        curves.position_data.foreach_set("vector", points)
+        rad = curves.attributes.get("radius") or curves.attributes.new("radius", "FLOAT", "POINT")
+        per_point = array("f")
+        for i in range(n):
+            per_point.extend([radius[i] * m_per_um] * (first[i + 1] - first[i]))
+        rad.data.foreach_set("value", per_point)
+        mi = curves.attributes.new("material_index", "INT", "CURVE")
+        mi.data.foreach_set("value", [0 if w else 1 for w in warp])
+        for yarn in ("warp", "weft"):
+            hm = _hair_material(f"{mat.name} Fibers ({yarn})", manifest, yarn)
+            new["materials"].append(hm)
+            curves.materials.append(hm)
+        new["group"] = _surface_group(obj.name + OBJECT_SUFFIX, obj, ev_uv_name(obj),
+                                      1.0 / um_per_uv, m_per_um)
+    except Exception:
+        if new["curves"] is not None:
+            bpy.data.hair_curves.remove(new["curves"])
+        for hm in new["materials"]:
+            bpy.data.materials.remove(hm)
+        if new["group"] is not None:
+            bpy.data.node_groups.remove(new["group"])
+        raise
 
     fo = fibers_object(obj)
+    old_curves, old_group = None, None
     if fo is None:
-        fo = bpy.data.objects.new(obj.name + OBJECT_SUFFIX, curves)
+        fo = bpy.data.objects.new(obj.name + OBJECT_SUFFIX, new["curves"])
         for coll in obj.users_collection:
             coll.objects.link(fo)
         fo[OWNER_PROP] = obj.name
     else:
-        old = fo.data
-        fo.data = curves
-        if old is not None and old.users == 0:
-            bpy.data.hair_curves.remove(old)
+        old_curves = fo.data
+        fo.data = new["curves"]
+    fo["loom_fibers_cache"] = cache
+    fo["loom_fibers_max_vertices"] = int(max_vertices)
     fo.parent = obj
     fo.matrix_parent_inverse.identity()
     fo.matrix_basis.identity()
-    group = _surface_group(obj.name + OBJECT_SUFFIX, obj, obj.data.uv_layers.active.name,
-                           1.0 / um_per_uv, m_per_um)
     mod = fo.modifiers.get(MODIFIER) or fo.modifiers.new(MODIFIER, "NODES")
-    mod.node_group = group
+    old_group = mod.node_group
+    mod.node_group = new["group"]
+    _remove_unused(old_curves, old_group)
     result.update(curves=n, vertices=len(points) // 3, hair_curves=int(fm.get("hair_curves", 0)),
                   region_um=region, object=fo.name,
                   reason=f"{n} fibers ({len(points) // 3} vertices) where the camera resolves "
                          f"them (up to {finest:.3g} px wide)")
     return result
+
+
+# ------------------------------------------------------------------ following the camera
+
+
+def update_all(scene, loom_bake: str | None = None) -> list[dict]:
+    """Update the fibers of every object in ``scene`` that has them (for the camera as it is
+    now), with the cache and budget each was made with. Errors are reported, not raised: a
+    render must not fail because a region could not be realized (its old fibers stay)."""
+    results = []
+    owners = [o.get(OWNER_PROP) for o in scene.objects if o.type == "CURVES" and o.get(OWNER_PROP)]
+    for name in owners:
+        obj = bpy.data.objects.get(name)
+        fo = fibers_object(obj) if obj is not None else None
+        if fo is None:
+            continue
+        try:
+            results.append(update_fibers(obj, scene, loom_bake=loom_bake,
+                                         cache_dir=fo.get("loom_fibers_cache"),
+                                         max_vertices=int(fo.get("loom_fibers_max_vertices",
+                                                                 DEFAULT_MAX_VERTICES))))
+        except (LoomBakeError, OSError) as exc:
+            print(f"loom: fibers of {name} not updated: {exc}")
+    return results
+
+
+def _render_pre(scene, *_args):
+    """render_pre handler: with Scene.loom_fibers_follow_camera, fibers follow the camera of
+    each frame rendered."""
+    if not getattr(scene, "loom_fibers_follow_camera", False):
+        return
+    if not bpy.app.background and not scene.render.use_lock_interface:
+        # Interactive renders run beside the interface: changing data then is unsafe.
+        print("loom: Fibers Follow Camera needs Render > Lock Interface for interactive renders; "
+              "fibers not updated")
+        return
+    from . import api
+    for r in update_all(scene, api.find_loom_bake()):
+        print(f"loom: {r['reason']}")
+
+
+_render_pre_handler = bpy.app.handlers.persistent(_render_pre)
+
+
+def register() -> None:
+    bpy.types.Scene.loom_fibers_follow_camera = bpy.props.BoolProperty(
+        name="Fibers Follow Camera",
+        description="Before each render, realize again the fibers of every cloth that has them "
+                    "for the camera of that frame",
+        default=False)
+    if _render_pre_handler not in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.append(_render_pre_handler)
+
+
+def unregister() -> None:
+    if _render_pre_handler in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.remove(_render_pre_handler)
+    if hasattr(bpy.types.Scene, "loom_fibers_follow_camera"):
+        del bpy.types.Scene.loom_fibers_follow_camera

@@ -314,11 +314,13 @@ def set_scale(mat, scale: float) -> bool:
 # ----------------------------------------------------------------------------------- scale
 
 
-def uv_meters_per_unit(obj, local: bool = False) -> float | None:
+def uv_meters_per_unit(obj, local: bool = False, mesh=None) -> float | None:
     """World length of one UV unit on ``obj`` (sqrt of world area over UV area, summed over the
     mesh's triangles, modifiers ignored), or None without UVs or area; ``local``: in the
-    object's own space instead. Pure Python: Blender builds without numpy exist (Debian's)."""
-    mesh = obj.data if obj is not None and obj.type == "MESH" else None
+    object's own space instead; ``mesh``: this mesh (e.g. the evaluated one) instead of
+    obj.data. Pure Python: Blender builds without numpy exist (Debian's)."""
+    if mesh is None:
+        mesh = obj.data if obj is not None and obj.type == "MESH" else None
     if mesh is None or mesh.uv_layers.active is None:
         return None
     mesh.calc_loop_triangles()

@@ -352,7 +352,6 @@ class LOOM_OT_fibers_update(Operator):
         except bakery.LoomBakeError as exc:
             self.report({"ERROR"}, f"Loom: {exc}")
             return {"CANCELLED"}
-        context.material.loom.status = res["reason"]
         self.report({"INFO"}, f"Loom: {res['reason']}")
         return {"FINISHED"}
 

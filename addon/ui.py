@@ -82,6 +82,7 @@ class MATERIAL_PT_loom(Panel):
             row = box.row(align=True)
             row.operator("loom.fibers_update", icon="STRANDS")
             row.operator("loom.fibers_remove", text="", icon="X")
+            box.prop(context.scene, "loom_fibers_follow_camera")
             for line in s.needs_report.splitlines():
                 box.label(text=line)
             # A Script node renders black where OSL cannot run (e.g. after switching the

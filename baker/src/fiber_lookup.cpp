@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 
 namespace loom {
 
@@ -90,6 +91,7 @@ int64_t last_inner(double z2, double dz) {
 HairSegment hair_segment(const Hair& h, double dz, double z) {
   HairSegment s;
   int64_t k = grid_index(z, dz), kf = first_inner(h.z1, dz);
+  if (double(k) * dz >= h.z2 && k >= kf) --k;  // z == z2 on the grid: the last segment
   double lo = double(k) * dz, hi = double(k + 1) * dz;
   if (lo <= h.z1) {
     s.za = h.z1;
@@ -129,7 +131,7 @@ struct Best {
   uint64_t fiber = 0;
   bool hair = false;
   Vertex2f v0, v1;
-  double seg_dz = 1;
+  double seg_dz = 1, cx = 0, cy = 0;  ///< segment, and the fiber centre in yarn space
   YarnProjection proj;
 
   bool beaten_by(double d, uint32_t y, bool h, uint32_t pl, uint64_t f) const {
@@ -152,6 +154,7 @@ void consider(Best& best, double x, double y, double t, Vertex2f v0, Vertex2f v1
     best.d2 = d2;
     best.yarn = yarn, best.ply = ply, best.fiber = fiber, best.hair = hair;
     best.v0 = v0, best.v1 = v1, best.seg_dz = seg_dz, best.proj = q;
+    best.cx = px, best.cy = py;
   }
 }
 
@@ -188,10 +191,15 @@ FiberHit finish(const Best& b, const std::vector<PatchYarn>& yarns) {
   h.covered = true;
   h.yarn = b.yarn, h.ply = b.ply, h.fiber = b.fiber, h.hair = b.hair;
   h.distance = std::sqrt(b.d2);
-  YarnFrame f = yarns[b.yarn].curve.frame(b.proj.piece, b.proj.u);
+  // Eq. 7's Jacobian along the fiber: d/dz [a(z) + x n(z) + y b(z)] with the rotation-minimising
+  // frame's n' = -(t'.n) t, b' = -(t'.b) t: (1 - x t'.n - y t'.b) t + x' n + y' b.
+  const YarnCurve& c = yarns[b.yarn].curve;
+  YarnFrame f = c.frame(b.proj.piece, b.proj.u);
+  Vec3d k = c.curvature(b.proj.piece, b.proj.u);
   double dx = (double(b.v1.x) - double(b.v0.x)) / b.seg_dz;
   double dy = (double(b.v1.y) - double(b.v0.y)) / b.seg_dz;
-  h.direction = normalized(f.n * dx + f.b * dy + f.t);
+  double along = 1 - b.cx * dot(k, f.n) - b.cy * dot(k, f.b);
+  h.direction = normalized(f.n * dx + f.b * dy + f.t * along);
   return h;
 }
 
@@ -209,6 +217,38 @@ struct Cloud {
 template <class T>
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<T, Cloud<T>>,
                                                    Cloud<T>, 3, uint32_t>;
+#if NANOFLANN_VERSION >= 0x150
+using SearchParams = nanoflann::SearchParameters;
+#else
+using SearchParams = nanoflann::SearchParams;
+#endif
+
+/// The indices of the points within a squared radius (the result-set interface of nanoflann
+/// 1.4 and later alike).
+template <class T>
+struct WithinRadius {
+  using DistanceType = T;
+  using IndexType = uint32_t;
+  T radius2;
+  std::vector<uint32_t>& out;
+  void init() { out.clear(); }
+  void clear() { out.clear(); }
+  size_t size() const { return out.size(); }
+  bool empty() const { return out.empty(); }
+  bool full() const { return true; }
+  bool addPoint(T d2, uint32_t i) {
+    if (d2 < radius2) out.push_back(i);
+    return true;
+  }
+  T worstDist() const { return radius2; }
+};
+
+template <class T>
+void points_within(const KdTree<T>& tree, const T* q, T radius, std::vector<uint32_t>& out) {
+  WithinRadius<T> r{radius * radius, out};
+  r.init();
+  tree.findNeighbors(r, q, SearchParams());
+}
 
 }  // namespace
 
@@ -247,14 +287,12 @@ YarnIndex::YarnIndex(YarnIndex&&) noexcept = default;
 std::vector<std::pair<uint32_t, YarnProjection>> YarnIndex::yarns_at(Vec3d p) const {
   std::vector<std::pair<uint32_t, YarnProjection>> out;
   if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) return out;
-  std::vector<std::pair<uint32_t, double>> hits;
+  std::vector<uint32_t> hits;
   const double q[3] = {p.x, p.y, p.z};
-  impl_->tree->radiusSearch(q, impl_->radius * impl_->radius, hits,
-                            nanoflann::SearchParams(32, 0, false));
+  points_within(*impl_->tree, q, impl_->radius, hits);
   // Pieces next to each vertex found, per yarn.
   std::vector<std::pair<uint32_t, int>> pieces;
-  for (auto& [idx, d2] : hits) {
-    (void)d2;
+  for (uint32_t idx : hits) {
     uint32_t y = impl_->yarn_of[idx];
     int v = int(impl_->vertex_of[idx]), n = (*impl_->yarns)[y].curve.pieces();
     if (v - 1 >= 0) pieces.push_back({y, v - 1});
@@ -329,8 +367,16 @@ struct FiberLookup::Impl {
   explicit Impl(const std::vector<PatchYarn>& y) : yarns(&y), index(y) {}
 };
 
+namespace {
+void require_patch_z(const std::vector<PatchYarn>& yarns) {
+  for (const auto& y : yarns)
+    if (y.curve.z_begin() != 0)
+      throw std::invalid_argument("fiber look-ups: patch yarn curves must start at z = 0");
+}
+}  // namespace
+
 FiberLookup::FiberLookup(const std::vector<PatchYarn>& yarns, FiberLookupOptions o)
-    : impl_(std::make_unique<Impl>(yarns)) {
+    : impl_((require_patch_z(yarns), std::make_unique<Impl>(yarns))) {
   impl_->opt = o;
   const int B = std::max(1, o.azimuth_bins);
   impl_->opt.azimuth_bins = B;
@@ -385,13 +431,26 @@ FiberLookup::FiberLookup(const std::vector<PatchYarn>& yarns, FiberLookupOptions
       std::sort(P.hair_edges.begin(), P.hair_edges.end());
       P.hair_edges.erase(std::unique(P.hair_edges.begin(), P.hair_edges.end()),
                          P.hair_edges.end());
-      P.hair_start.push_back(0);
-      for (size_t bi = 0; bi + 1 < P.hair_edges.size(); ++bi) {
-        for (uint32_t j = 0; j < ext.size(); ++j)
-          if (ext[j].first <= P.hair_edges[bi] && ext[j].second >= P.hair_edges[bi + 1])
-            P.hair_list.push_back(j);
-        P.hair_start.push_back(uint32_t(P.hair_list.size()));
+      // Hair j is active in the bins from its lower end's edge to the one before its upper
+      // end's (all ends are edges): counted, then filled, in time linear in the lists.
+      const size_t nb = P.hair_edges.size() > 0 ? P.hair_edges.size() - 1 : 0;
+      auto edge = [&](double end) {
+        return size_t(std::lower_bound(P.hair_edges.begin(), P.hair_edges.end(), end) -
+                      P.hair_edges.begin());
+      };
+      std::vector<std::pair<size_t, size_t>> span(ext.size());
+      std::vector<uint32_t> count(nb + 1, 0);
+      for (size_t j = 0; j < ext.size(); ++j) {
+        span[j] = {edge(ext[j].first), edge(ext[j].second)};
+        for (size_t b = span[j].first; b < span[j].second; ++b) ++count[b];
       }
+      P.hair_start.assign(nb + 1, 0);
+      for (size_t b = 0; b < nb; ++b) P.hair_start[b + 1] = P.hair_start[b] + count[b];
+      P.hair_list.resize(P.hair_start[nb]);
+      std::vector<uint32_t> fill(P.hair_start.begin(), P.hair_start.end() - 1);
+      for (size_t j = 0; j < ext.size(); ++j)  // j ascending: each bin's list stays sorted
+        for (size_t b = span[j].first; b < span[j].second; ++b) P.hair_list[fill[b]++] = uint32_t(j);
+      if (nb == 0) P.hair_start.assign(1, 0);
       P.a.shrink_to_fit(), P.b.shrink_to_fit(), P.theta.shrink_to_fit();
       P.central.shrink_to_fit(), P.bin_fibers.shrink_to_fit(), P.hair_edges.shrink_to_fit();
       P.hair_list.shrink_to_fit(), P.hair_start.shrink_to_fit(), P.bin_start.shrink_to_fit();
@@ -510,7 +569,7 @@ struct RealizedFibers::Impl {
 };
 
 RealizedFibers::RealizedFibers(const std::vector<PatchYarn>& yarns, FiberLookupOptions o)
-    : impl_(std::make_unique<Impl>(yarns)) {
+    : impl_((require_patch_z(yarns), std::make_unique<Impl>(yarns))) {
   impl_->realized.resize(yarns.size());
   for (size_t i = 0; i < yarns.size(); ++i) {
     const PlyParams& p = yarns[i].ply;
@@ -569,17 +628,16 @@ RealizedFibers::~RealizedFibers() = default;
 FiberHit RealizedFibers::lookup(Vec3d p) const {
   Best best;
   const auto& yarns = *impl_->yarns;
-  std::vector<std::pair<uint32_t, float>> hits;
-  std::vector<uint32_t> polys;
+  std::vector<uint32_t> hits, polys;
   for (auto& [yi, proj] : impl_->index.yarns_at(p)) {
     const RealizedYarn& Y = impl_->realized[yi];
     Vec3d yp = yarns[yi].curve.to_yarn(p, proj);
     const double z = yp.z;
     const float q[3] = {float(yp.x), float(yp.y), float(z)};
     hits.clear();
-    Y.tree->radiusSearch(q, float(Y.search * Y.search), hits, nanoflann::SearchParams(32, 0, false));
+    points_within(*Y.tree, q, float(Y.search), hits);
     polys.clear();
-    for (auto& h : hits) polys.push_back(Y.seg_poly[h.first]);
+    for (uint32_t h : hits) polys.push_back(Y.seg_poly[h]);
     std::sort(polys.begin(), polys.end());
     polys.erase(std::unique(polys.begin(), polys.end()), polys.end());
     for (uint32_t pi : polys) {

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -66,6 +67,11 @@ struct Fabric {
     int64_t g = m + kRegionOrigin * P;  // >= 0 for regions within range
     return double(g / P) * prefix[size_t(P)] + prefix[size_t(g % P)];
   }
+  /// The fibers' z step here: fiber_step, and at most a 16th of the crossing spacing, so that
+  /// the curves, straight between vertices in the fabric, follow the yarn's bends.
+  double region_step(bool is_warp) const {
+    return std::min(fiber_step(is_warp ? warp : weft), step(is_warp) / 16);
+  }
   uint32_t seed(bool is_warp, int64_t idx) const {
     return uint32_t(2 * (idx + kRegionOrigin) + (is_warp ? 0 : 1));
   }
@@ -125,7 +131,7 @@ uint64_t estimate_region_vertices(const FabricSpec& s, const FiberRegion& r) {
   double total = 0;
   for (const auto& y : region_yarns(F, r)) {
     const PlyParams& p = y.warp ? F.warp : F.weft;
-    const double dz = fiber_step(p);
+    const double dz = F.region_step(y.warp);
     // Arc length over the chord: at most 1.25 for these bends (h <= spacing / 2). The hairs'
     // count is their mean: the walk below enforces the budget exactly.
     double len = 1.25 * double(y.m1 - y.m0) * F.step(y.warp);
@@ -177,7 +183,7 @@ FiberCurves realize_fiber_region(const FabricSpec& s, const FiberRegion& r,
     YarnCurve c = F.curve(y.warp, y.idx, y.m0, y.m1);
     c.set_z_at_vertex(1, F.global_z(y.warp, y.idx, y.m0 + 1));
     const double z_lo = c.z_at_vertex(1), z_hi = c.z_at_vertex(c.pieces() - 1);
-    const double dz = fiber_step(p);
+    const double dz = F.region_step(y.warp);
     ++out.yarns;
     for (uint32_t ply = 0; ply < uint32_t(std::max(p.plies, 1)); ++ply) {
       int64_t k0 = int64_t(std::ceil(z_lo / dz)), k1 = int64_t(std::floor(z_hi / dz));
@@ -227,6 +233,7 @@ void write_fiber_curves(const FiberCurves& c, const FabricSpec& s, const FiberRe
     auto write = [&](const char* name, const void* data, size_t bytes) {
       std::ofstream o(tmp / name, std::ios::binary);
       o.write(static_cast<const char*>(data), std::streamsize(bytes));
+      o.close();  // the last write happens here: check after it
       if (!o) throw std::runtime_error(fmt::format("writing {} failed", name));
     };
     write("points.f32", c.points.data(), c.points.size() * 4);
@@ -257,6 +264,7 @@ void write_fiber_curves(const FiberCurves& c, const FabricSpec& s, const FiberRe
     {
       std::ofstream o(tmp / "manifest.json");
       o << m.dump(2) << "\n";
+      o.close();
       if (!o) throw std::runtime_error("writing manifest.json failed");
     }
     if (::rename(tmp.c_str(), dir.c_str()) != 0) {

@@ -106,6 +106,20 @@ Vec3d YarnCurve::derivative(int k, double u) const {
          tangents_[size_t(k) + 1] * d11;
 }
 
+Vec3d YarnCurve::second_derivative(int k, double u) const {
+  double a = 12 * u - 6;
+  return points_[size_t(k)] * a + tangents_[size_t(k)] * (6 * u - 4) +
+         points_[size_t(k) + 1] * (-a) + tangents_[size_t(k) + 1] * (6 * u - 2);
+}
+
+Vec3d YarnCurve::curvature(int k, double u) const {
+  Vec3d d1 = derivative(k, u), d2 = second_derivative(k, u);
+  double l2 = dot(d1, d1);
+  if (l2 <= 0) return {0, 0, 0};
+  Vec3d t = d1 * (1 / std::sqrt(l2));
+  return (d2 - t * dot(d2, t)) * (1 / l2);
+}
+
 double YarnCurve::arc_length(int k, double u) const {
   double s = 0;
   for (int i = 0; i < 5; ++i) s += kGLw[i] * norm(derivative(k, u * kGLx[i]));
@@ -155,10 +169,7 @@ YarnProjection YarnCurve::project_piece(Vec3d p, int k) const {
   }
   double u = bu;
   for (int it = 0; it < 12; ++it) {  // Newton on g(u) = |a(u) - p|^2
-    Vec3d e = position(k, u) - p, d1 = derivative(k, u);
-    double u2 = 6 * (2 * u - 1);  // second derivative weights of the Hermite basis
-    Vec3d d2 = points_[size_t(k)] * u2 + tangents_[size_t(k)] * (6 * u - 4) +
-               points_[size_t(k) + 1] * (-u2) + tangents_[size_t(k) + 1] * (6 * u - 2);
+    Vec3d e = position(k, u) - p, d1 = derivative(k, u), d2 = second_derivative(k, u);
     double g1 = dot(e, d1), g2 = dot(d1, d1) + dot(e, d2);
     double step = g2 > 0 ? g1 / g2 : (g1 > 0 ? 0.05 : -0.05);
     double nu = std::clamp(u - step, 0.0, 1.0);

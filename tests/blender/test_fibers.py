@@ -1,7 +1,7 @@
 """Fiber tier in Blender (addon/fibers.py): a close-up camera gets real fibers on the cloth
 (curves exist, lie on the surface, and change the render), a far camera gets none, a region over
 the vertex budget is refused without touching the scene, moving the camera moves the region,
-and the cloth's own material is left as it was.
+and the cloth's own material is left as it was; with Fibers Follow Camera a render updates them.
 
     blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_fibers.py \
         -- --loom-bake LOOM_BAKE --atlas ATLAS --out DIR
@@ -104,6 +104,38 @@ def main():
     assert res2["object"] == res["object"], res2
     assert res2["region_um"][0] > region0[0] + 1000, (region0, res2["region_um"])
     assert len([o for o in bpy.data.objects if o.type == "CURVES"]) == 1, "fibers duplicated"
+
+    # At the cloth's corner the region runs past the mesh: points off the UV map are dropped,
+    # none is left at the surface's origin.
+    cam.location = (0.0095, 0.0095, 0.02)
+    res_c = loom.api.update_fibers(cloth, scene, loom_bake=args.loom_bake,
+                                   cache_dir=os.path.join(args.out, "cache"))
+    assert res_c["region_um"][2] > 10000 + 300, res_c["region_um"]  # past the edge (u > 0.5)
+    pts = evaluated_points(bpy.data.objects[res_c["object"]])
+    assert pts and all(p.x > 0.006 and p.y > 0.006 for p in pts), \
+        f"points off the UV map kept: min x {min(p.x for p in pts):.4g}"
+
+    # On the evaluated surface: a modifier moves the cloth 2.5 mm along x; the fibers come with
+    # it, and the region is where the moved cloth is under the camera.
+    disp = cloth.modifiers.new("Shift", "DISPLACE")
+    disp.direction = "X"
+    disp.strength = 0.005  # no texture: every vertex moves strength x (1 - mid level) = 2.5 mm
+    cam.location = (0.0, 0.0, 0.02)
+    res_d = loom.api.update_fibers(cloth, scene, loom_bake=args.loom_bake,
+                                   cache_dir=os.path.join(args.out, "cache"))
+    xs = sorted(p.x for p in evaluated_points(bpy.data.objects[res_d["object"]]))
+    assert abs(xs[len(xs) // 2]) < 0.001, f"fibers not under the camera on the moved cloth: {xs[len(xs) // 2]}"
+    cloth.modifiers.remove(disp)
+
+    # Following the camera: a render updates the region for the camera of that frame.
+    scene.loom_fibers_follow_camera = True
+    os.environ["LOOM_BAKE"] = args.loom_bake
+    cam.location = (-0.004, 0.0, 0.02)
+    render(scene, args.out, "follow")
+    fo = bpy.data.objects[res2["object"]]
+    xs = sorted(p.x for p in evaluated_points(fo))
+    assert xs[len(xs) // 2] < -0.003, f"fibers did not follow the camera: {xs[len(xs) // 2]}"
+    scene.loom_fibers_follow_camera = False
 
     # Over the budget: refused with the count, the scene as it was.
     n_before = len(bpy.data.objects[res2["object"]].data.points)

@@ -160,6 +160,41 @@ TEST(FiberLookup, EqualsFullRealizationAndTheDefinition) {
   }
 }
 
+TEST(FiberLookup, DirectionIsTheFibersTangentInTheFabric) {
+  // Against finite differences of the fiber's own polyline mapped into the fabric (Eq. 7), on
+  // bent yarns: the frame's turning enters the tangent (n' = -(t'.n) t).
+  auto patch = loom::make_woven_patch(flyaway_spec(), 8);
+  loom::FiberLookup mini(patch);
+  int checked = 0;
+  double worst = 0;
+  for (auto& p : loom::fiber_test_points(patch, 20000, 17)) {
+    auto h = mini.lookup(p);
+    if (!h.covered || h.hair) continue;
+    const auto& y = patch[h.yarn];
+    loom::YarnProjection pr;
+    for (int k = 0; k < y.curve.pieces(); ++k) {
+      auto q = y.curve.project_piece(p, k);
+      if (q.distance < pr.distance) pr = q;
+    }
+    const double z = pr.z, dz = loom::fiber_step(y.ply);
+    const auto f = loom::make_fiber(y.ply, y.seed_index, h.ply, uint32_t(h.fiber));
+    const int64_t k = int64_t(std::floor(z / dz));
+    auto v0 = loom::regular_vertex(y.ply, y.seed_index, h.ply, uint32_t(h.fiber), f, k, dz);
+    auto v1 = loom::regular_vertex(y.ply, y.seed_index, h.ply, uint32_t(h.fiber), f, k + 1, dz);
+    auto at = [&](double zz) {
+      double t = (zz - double(k) * dz) / dz;
+      return y.curve.to_fabric({v0.x + (double(v1.x) - v0.x) * t, v0.y + (double(v1.y) - v0.y) * t, zz});
+    };
+    const double e = 1e-3 * dz;
+    if (z - e < double(k) * dz || z + e > double(k + 1) * dz) continue;  // stay in the segment
+    auto d = loom::normalized(at(z + e) - at(z - e));
+    worst = std::max(worst, len(d - h.direction));
+    ++checked;
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_LT(worst, 2e-3);
+}
+
 TEST(FiberLookup, TheComparisonCanFail) {
   // Pruning with a third of the safe margin drops fibers: the comparison must notice.
   auto patch = loom::make_woven_patch(flyaway_spec(), 6);
@@ -209,19 +244,27 @@ TEST(FiberLookup, LoopsReachBeyondTheMigrationRange) {
 
 TEST(FiberLookup, ConsistentSeedingAcrossBuildsAndThreads) {
   auto patch = loom::make_woven_patch(flyaway_spec(), 8);
-  auto pts = loom::fiber_test_points(patch, 20000, 9);
-  loom::FiberLookup a(patch);
-  std::vector<loom::FiberHit> serial;
-  for (auto& p : pts) serial.push_back(a.lookup(p));
-  // Another build of the same patch, looked up from many threads in any order.
-  auto patch2 = loom::make_woven_patch(flyaway_spec(), 8);
-  loom::FiberLookup b(patch2);
-  std::vector<loom::FiberHit> parallel(pts.size());
-  tbb::parallel_for(size_t(0), pts.size(), [&](size_t i) { parallel[i] = b.lookup(pts[i]); });
-  int diff = 0;
-  for (size_t i = 0; i < pts.size(); ++i)
-    diff += !serial[i].same_fiber(parallel[i]) || serial[i].distance != parallel[i].distance;
-  EXPECT_EQ(diff, 0);
+  for (bool free_hairs : {false, true}) {  // hybrid bins, and Algorithm 3's per-thread lists
+    SCOPED_TRACE(free_hairs ? "realization-free hairs" : "hybrid hairs");
+    loom::FiberLookupOptions o;
+    o.realization_free_hairs = free_hairs;
+    auto pts = loom::fiber_test_points(patch, free_hairs ? 4000 : 20000, 9);
+    loom::FiberLookup a(patch, o);
+    std::vector<loom::FiberHit> serial;
+    for (auto& p : pts) serial.push_back(a.lookup(p));
+    // Another build of the same patch, looked up from many threads in any order.
+    auto patch2 = loom::make_woven_patch(flyaway_spec(), 8);
+    loom::FiberLookup b(patch2, o);
+    std::vector<loom::FiberHit> parallel(pts.size());
+    tbb::parallel_for(size_t(0), pts.size(), [&](size_t i) { parallel[i] = b.lookup(pts[i]); });
+    int diff = 0, hair = 0;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      diff += !serial[i].same_fiber(parallel[i]) || serial[i].distance != parallel[i].distance;
+      hair += serial[i].covered && serial[i].hair;
+    }
+    EXPECT_EQ(diff, 0);
+    EXPECT_GT(hair, 10);
+  }
   // The same yarn in a bigger patch has the same fibers: seeding is per yarn, not per patch.
   auto big = loom::make_woven_patch(flyaway_spec(), 20);
   EXPECT_EQ(loom::make_fiber(big[3].ply, big[3].seed_index, 1, 7).R,
@@ -245,6 +288,7 @@ TEST(FiberLookup, BadAndExtremeInput) {
   EXPECT_THROW(loom::make_woven_patch(s, loom::kMaxPatchYarns + 1), std::invalid_argument);
   try {
     loom::make_woven_patch(s, 0);
+    ADD_FAILURE() << "no error for 0 yarns";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("yarns"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("[2, "), std::string::npos);

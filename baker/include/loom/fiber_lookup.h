@@ -90,7 +90,8 @@ struct FiberLookupOptions {
 /// vertices searched with radius max_i (R_i + delta_i).
 class YarnIndex {
  public:
-  explicit YarnIndex(const std::vector<PatchYarn>& yarns);
+  explicit YarnIndex(const std::vector<PatchYarn>& yarns);  ///< keeps a reference to yarns
+  explicit YarnIndex(std::vector<PatchYarn>&&) = delete;
   ~YarnIndex();
   YarnIndex(YarnIndex&&) noexcept;
   /// For each yarn whose pipe holds p (interior projection within the yarn's reach), its
@@ -106,7 +107,8 @@ class YarnIndex {
 /// Realization-minimising look-ups (Algorithm 1).
 class FiberLookup {
  public:
-  FiberLookup(const std::vector<PatchYarn>& yarns, FiberLookupOptions o = {});
+  FiberLookup(const std::vector<PatchYarn>& yarns, FiberLookupOptions o = {});  ///< keeps a ref.
+  FiberLookup(std::vector<PatchYarn>&&, FiberLookupOptions = {}) = delete;
   ~FiberLookup();
   FiberHit lookup(Vec3d p) const;
   size_t bytes() const;  ///< everything it stores, yarn curves and Kd-tree included
@@ -124,6 +126,7 @@ class RealizedFibers {
  public:
   /// Only `realization_free_hairs` of the options matters: which hair process is realized.
   explicit RealizedFibers(const std::vector<PatchYarn>& yarns, FiberLookupOptions o = {});
+  RealizedFibers(std::vector<PatchYarn>&&, FiberLookupOptions = {}) = delete;
   ~RealizedFibers();
   FiberHit lookup(Vec3d p) const;
   size_t bytes() const;

@@ -6,13 +6,14 @@
 // - warp yarn r runs along x at y = (r + 1/2) / warp density, weft c along y at x = (c + 1/2) /
 //   weft density, through one vertex per crossing (woven_patch.h's geometry), seeded by its global
 //   index (section 5.3), so two overlapping regions give the same fibers where they overlap;
-// - a yarn's z (arc length) is measured from a fixed origin kRegionOrigin yarns before x = 0 (or
-//   y = 0), from the weave period's piece lengths, so its fibers' phases do not depend on where a
-//   region starts;
+// - a yarn's z (arc length) is measured from a fixed origin kRegionOrigin weave periods before its
+//   vertex at x = 0 (or y = 0), from the period's piece lengths, so its fibers' phases do not
+//   depend on where a region starts;
 // - hairs are a Poisson process along each ply in blocks of kHairBlockUm, each block drawn from
 //   its own generator keyed by (yarn, ply, block), so the hairs too are the region's share of one
 //   process over the whole yarn. (Not the same samples as FiberLookup's patch hairs.)
-// Each fiber is the polyline through its Eq. 1-4 centre every fiber_step, as in fiber_lookup.h,
+// Each fiber is the polyline through its Eq. 1-4 centre every fiber_step (fiber_lookup.h), and at
+// most every 16th of the crossing spacing so that its straight segments follow the yarn's bends,
 // mapped into the fabric by the yarn's frame (Eq. 7).
 #pragma once
 #include <cstdint>
@@ -28,7 +29,8 @@ struct FiberRegion {
   double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
 };
 
-/// Yarns before the origin: regions must lie within kRegionOrigin yarn spacings of it.
+/// Weave periods before the origin; regions must lie within kRegionOrigin - 8 yarn spacings of
+/// x = y = 0.
 inline constexpr int64_t kRegionOrigin = 1 << 16;
 inline constexpr double kHairBlockUm = 4000;
 inline constexpr uint64_t kDefaultMaxFiberVertices = 20'000'000;

@@ -13,7 +13,8 @@
 // - the root domain is [0, length] x [0, length + hair_length_max];
 // - a node's random numbers come from a generator seeded by (yarn, ply, node path), so a node
 //   draws the same split whenever it is visited: consistent seeding (section 5.3);
-// - the multinomial is drawn as three nested binomials (std::binomial_distribution);
+// - the multinomial is drawn as three nested binomials (std::binomial_distribution: the same
+//   hairs on every run with one C++ standard library, not across libraries);
 // - below depth 40 a node's remaining hairs are drawn one by one (never reached in practice:
 //   each split quarters the domain);
 // - a leaf's hair is drawn exactly from the process restricted to the leaf: z1 by rejection
@@ -28,7 +29,8 @@
 namespace loom {
 
 struct HairFlyaway {
-  uint64_t id = 0;  ///< the leaf's path in the implicit tree: unique within the ply
+  uint64_t id = 0;  ///< a 64-bit hash of the leaf's path: unique within the ply but for collisions
+                    ///< of probability ~n^2 / 2^65
   Hair hair;
 };
 

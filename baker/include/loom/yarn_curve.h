@@ -54,6 +54,10 @@ class YarnCurve {
 
   Vec3d position(int piece, double u) const;
   Vec3d derivative(int piece, double u) const;  ///< d position / d u
+  Vec3d second_derivative(int piece, double u) const;
+  /// dt/ds, the curvature vector (s arc length): what Eq. 7's Jacobian needs, since a
+  /// rotation-minimising frame's n and b turn only towards t (n' = -(t'.n) t, b' = -(t'.b) t).
+  Vec3d curvature(int piece, double u) const;
   double arc_length(int piece, double u) const;  ///< yarn-space z
   YarnFrame frame(int piece, double u) const;
 
