@@ -313,7 +313,8 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
                   timeout: float = 600.0) -> dict:
     """Realize the fibers the camera resolves on ``obj`` (see the module doc) and return what was
     done: ``curves``, ``vertices``, ``hair_curves``, ``region_um``, ``finest_px`` (the widest
-    fiber footprint seen), ``object`` (the fibers object's name, or None) and ``reason``.
+    fiber footprint seen), ``object`` (the fibers object's name, or None), ``bytes`` (what was
+    loaded) and ``reason``.
 
     Raises LoomBakeError (nothing in the scene changed) when obj has no Loom material or UV map,
     or loom-bake refuses the region (its message, e.g. over ``max_vertices``)."""
@@ -349,7 +350,7 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
     finally:
         ev.to_mesh_clear()
     result = {"curves": 0, "vertices": 0, "hair_curves": 0, "region_um": None,
-              "finest_px": finest, "object": None}
+              "finest_px": finest, "object": None, "bytes": 0}
     if box is None:
         removed = remove_fibers(obj)
         result["reason"] = (f"no fibers: the camera resolves none (the widest is {finest:.3g} px, "
@@ -435,10 +436,11 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
     old_group = mod.node_group
     mod.node_group = new["group"]
     _remove_unused(old_curves, old_group)
+    loaded = sum(os.path.getsize(os.path.join(out_dir, f)) for f in os.listdir(out_dir))
     result.update(curves=n, vertices=len(points) // 3, hair_curves=int(fm.get("hair_curves", 0)),
-                  region_um=region, object=fo.name,
-                  reason=f"{n} fibers ({len(points) // 3} vertices) where the camera resolves "
-                         f"them (up to {finest:.3g} px wide)")
+                  region_um=region, object=fo.name, bytes=loaded,
+                  reason=f"{n} fibers ({len(points) // 3} vertices, {loaded / 2**20:.1f} MiB) where "
+                         f"the camera resolves them (up to {finest:.3g} px wide)")
     return result
 
 

@@ -408,9 +408,11 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
 
   // Cross-field checks.
   if (s.tier == Tier::Fiber)
-    errors.push_back(fmt::format("$.model.tier: \"{}\" is not available yet in this baker; "
-                                 "allowed now: \"surface\", \"raywave\" (baker-side ply tables)",
-                                 to_string(s.tier)));
+    errors.push_back(fmt::format(
+        "$.model.tier: \"{}\" is not available yet as an atlas tier; allowed: \"surface\", "
+        "\"raywave\". Fibers go over either where the camera resolves them: the Blender "
+        "add-on's Fibers from Camera, or loom-bake fibers --region",
+        to_string(s.tier)));
   // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
   int rows = 2, cols = 2;
   const auto& w = s.weave;

@@ -74,6 +74,7 @@ def main():
     fo = bpy.data.objects[res["object"]]
     assert res["curves"] > 100, res
     assert 0 < res["vertices"] <= 4_000_000, res
+    assert res["bytes"] >= res["vertices"] * 12, res  # reported: at least the points loaded
     assert res["finest_px"] >= 0.5, res
     pts = evaluated_points(fo)
     assert len(pts) > 1000, f"only {len(pts)} points left on the surface"
