@@ -464,7 +464,10 @@ FiberHit FiberLookup::lookup(Vec3d p) const {
   Best best;
   const auto& yarns = *impl_->yarns;
   const int B = impl_->opt.azimuth_bins;
-  for (auto& [yi, proj] : impl_->index.yarns_at(p)) {
+  for (const auto& found : impl_->index.yarns_at(p)) {
+    // (Not a structured binding: the lambda below captures these, which clang 14 refuses.)
+    const uint32_t yi = found.first;
+    const YarnProjection& proj = found.second;
     const PatchYarn& yarn = yarns[yi];
     const PlyParams& P = yarn.ply;
     const YarnFibers& Y = impl_->fibers[yi];
