@@ -282,12 +282,15 @@ std::array<double, 4> corner_weights(double r, double s) {
   return {(1 - r) * (1 - s), (1 - r) * s, r * (1 - s), r * s};
 }
 
-AsgTable fit(const PlySimResult& sim, const AsgFitSettings& s, bool refl) {
-  const int M = int(sim.theta_i.size()), N = int(sim.h.size()), L = s.lobes;
+AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl) {
+  const int M = int(sim.theta_i.size()), N = int(sim.h.size()), L = settings.lobes;
   if (M < 3 || N < 3 || M % 2 == 0 || N % 2 == 0)
     throw std::invalid_argument("asg_fit: the theta_i and h sample counts must be odd and >= 3");
   if (L < 1) throw std::invalid_argument("asg_fit: at least one lobe");
   const FitGrid g = make_grid(sim, refl);
+  // No lobe narrower than the grid it is fitted on (asg_resolvable_mu).
+  AsgFitSettings s = settings;
+  s.mu_max = std::min(s.mu_max, asg_resolvable_mu(g.rows, g.cols));
   const int Lb = back_lobes(L, s.split_sides);
   const int Mb = (M - 1) / 2, Nb = (N - 1) / 2, rows = Mb + 1, cols = Nb + 1, K = g.K;
   double data_max = 0;
@@ -481,6 +484,11 @@ AsgFitSettings asg_fit_settings(Quality q, bool refl) {
     case Quality::Reference: s.lobes = refl ? 2 : 6, s.max_iterations = 100; break;
   }
   return s;
+}
+
+double asg_resolvable_mu(int rows, int cols) {
+  const double d = std::max(M_PI / rows, 2 * M_PI / cols);
+  return 2 / (d * d);
 }
 
 AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, false); }

@@ -87,6 +87,17 @@ struct AsgTable {
   }
 };
 
+/// The sharpest lobe a fit on a grid of rows x cols (theta_o, phi_o) bins can resolve: mu such
+/// that the lobe's angular standard deviation 1 / sqrt(2 mu) is half a bin, mu = 2 / d^2 with d
+/// the larger of the bins' elevation and equatorial azimuth widths. Choice where the text is
+/// silent: S.4's least squares sees a lobe only at the bins' centres, so a lobe narrower than a
+/// bin can sit between centres with any amplitude: its energy is then unconstrained (white silk
+/// organza at `final`: lobes of mu ~ 1000 holding 2.4-4x the simulated energy, so the presets
+/// did not converge towards `reference`). At half a bin the centres' Riemann sum of a lobe
+/// equals its integral within 3 % wherever it sits. Fits cap mu1, mu2 at
+/// min(AsgFitSettings::mu_max, this), so a finer simulated grid allows sharper lobes.
+double asg_resolvable_mu(int rows, int cols);
+
 /// Fit f_high (all absorption levels) of a simulation.
 AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s);
 /// Fit f_refl of a simulation (one level, no scale-downs).
