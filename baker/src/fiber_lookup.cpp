@@ -22,10 +22,13 @@ double fiber_step(const PlyParams& p) {
   return std::max(shortest / 32, 0.5);
 }
 
+double migration_reach(const PlyParams& p) {
+  return p.loop_density > 0 ? std::max(p.r_max, p.loop_r_max) : p.r_max;
+}
+
 namespace {
 double reach_factor(const PlyParams& p) {
-  double f = p.r_max;
-  if (p.loop_density > 0) f = std::max(f, p.loop_r_max);
+  double f = migration_reach(p);
   if (p.hair_density > 0) f = std::max(f, p.hair_r_max);
   return std::max(f, 1.0);  // hairs start anywhere up to R_ply
 }
@@ -33,7 +36,7 @@ bool twisted_plies(const PlyParams& p) { return p.plies > 1 && p.ply_centre_radi
 }  // namespace
 
 double polyline_error(const PlyParams& p, double dz) {
-  double rmax = p.loop_density > 0 ? std::max(p.r_max, p.loop_r_max) : p.r_max;
+  const double rmax = migration_reach(p);
   double Lc = twisted_plies(p) && p.ply_pitch > 0 ? p.ply_centre_radius * 2 * M_PI / p.ply_pitch
                                                  : 0;
   // Eq. 1-2: |d/dz (R cos, R sin)| <= R 2 pi / a + |dR/dz|, |dR/dz| <= R_ply (rmax - rmin) / 2 *
@@ -391,7 +394,7 @@ FiberLookup::FiberLookup(const std::vector<PatchYarn>& yarns, FiberLookupOptions
     Y.margin = (p.fiber_radius + e) * o.margin_scale;
     Y.ply_select = (ply_reach(p) + p.fiber_radius + e) * std::min(1.0, o.margin_scale) + 1e-3;
     Y.length = yarns[i].curve.length();
-    const double rmax = p.loop_density > 0 ? std::max(p.r_max, p.loop_r_max) : p.r_max;
+    const double rmax = migration_reach(p);
     Y.plies.resize(size_t(std::max(p.plies, 1)));
     for (uint32_t ply = 0; ply < Y.plies.size(); ++ply) {
       PlyIndex& P = Y.plies[ply];

@@ -17,6 +17,7 @@
 #include "loom/fiber_lookup.h"
 #include "loom/procedural_ply.h"
 #include "loom/weave.h"
+#include "loom/woven_patch.h"
 #include "loom/yarn_curve.h"
 
 namespace loom {
@@ -33,24 +34,22 @@ uint64_t mix(uint64_t x) {  // SplitMix64
 
 /// The global geometry of the unbounded fabric (woven_patch.h's, indexed from any yarn).
 struct Fabric {
+  FabricSpec spec;
   Weave w;
-  double sx, sy, h;
+  double sx, sy;
   PlyParams warp, weft;
   explicit Fabric(const FabricSpec& s)
-      : w(make_weave(s.weave)),
+      : spec(s),
+        w(make_weave(s.weave)),
         sx(1e4 / s.weft_per_cm),
         sy(1e4 / s.warp_per_cm),
-        h(0.125 * (s.warp.yarn_diameter_um + s.weft.yarn_diameter_um)),
         warp(ply_params_from_yarn(s.warp)),
         weft(ply_params_from_yarn(s.weft)) {}
   int period(bool is_warp) const { return is_warp ? w.cols() : w.rows(); }
   double step(bool is_warp) const { return is_warp ? sx : sy; }
   /// Vertex m of warp row / weft column `idx`.
   Vec3d vertex(bool is_warp, int64_t idx, int64_t m) const {
-    int r = int(is_warp ? idx % w.rows() : m % w.rows()), c = int(is_warp ? m % w.cols() : idx % w.cols());
-    bool over = w.at(r, c) != 0;  // warp on top
-    if (is_warp) return {(double(m) + 0.5) * sx, (double(idx) + 0.5) * sy, over ? h : -h};
-    return {(double(idx) + 0.5) * sx, (double(m) + 0.5) * sy, over ? -h : h};
+    return woven_vertex(spec, w, is_warp, idx, m);
   }
   YarnCurve curve(bool is_warp, int64_t idx, int64_t m0, int64_t m1) const {
     std::vector<Vec3d> pts;

@@ -39,6 +39,9 @@ double fiber_step(const PlyParams& p);
 /// Upper bound on the distance between a fiber's polyline and its analytic Eq. 1-4 centre in
 /// yarn space: L dz / 2 for the centre's xy speed bound L (loops and hairs included).
 double polyline_error(const PlyParams& p, double dz);
+/// Largest migration radius of a regular fiber (or loop), in units of the ply radius: r_max of
+/// Eq. 2, or the loops' mutated r_max when the ply has loops (section 4.4.1).
+double migration_reach(const PlyParams& p);
 /// Largest distance of any fiber centre of the yarn from its ply's centre (um).
 double ply_reach(const PlyParams& p);
 /// Largest distance of any covered point from the yarn centre: the yarn's pipe radius.

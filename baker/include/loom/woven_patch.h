@@ -10,10 +10,12 @@
 // elliptic section of aspect about 2), and it keeps the bends' radius of curvature near the
 // yarn radius at the usual thread counts (sinusoid: spacing^2 / (pi^2 h)); the curve starts and ends half a spacing beyond the patch.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "loom/procedural_ply.h"
 #include "loom/spec.h"
+#include "loom/weave.h"
 #include "loom/yarn_curve.h"
 
 namespace loom {
@@ -24,6 +26,11 @@ struct PatchYarn {
   bool warp = true;
   uint32_t seed_index = 0;  ///< the yarn index of section 5.3's consistent seeding
 };
+
+/// Vertex m (um) of warp row / weft column `index` of the unbounded fabric woven by `w` (the
+/// spec's weave) at the spec's spacings, with the crossing height h of the choices above: the
+/// one statement of the woven geometry, for patches and for regions (fiber_region.h) alike.
+Vec3d woven_vertex(const FabricSpec& s, const Weave& w, bool warp, int64_t index, int64_t m);
 
 /// The largest patch make_woven_patch builds (yarns in both directions together).
 inline constexpr int kMaxPatchYarns = 20000;
