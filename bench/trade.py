@@ -25,6 +25,7 @@ Choices where the issue is silent:
 
 import argparse
 import csv
+import hashlib
 import json
 import os
 import statistics
@@ -62,6 +63,9 @@ def parse(argv):
     p.add_argument("--lobes", default="orange_polyester_satin:final:30:0.3:0",
                    help="FABRIC:QUALITY:THETA_I_DEG:H:SIGMA of the lobe plot (with the "
                         "ray-wave tier), or 'none'")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the fabrics and tiers an earlier run with the same settings and "
+                        "the same loom-bake binary measured (DIR/done.json) and measure the rest")
     p.add_argument("--bake", default=os.path.join(ROOT, "build", "loom-bake"))
     p.add_argument("--out", default=os.path.join(ROOT, "out", "trade"))
     a = p.parse_args(argv)
@@ -171,13 +175,55 @@ def render(args, fabric, tier, atlases, out_dir):
         return json.load(f)
 
 
+def settings_key(args):
+    """What makes two runs' rows comparable: the measuring settings and the baker itself."""
+    h = hashlib.sha256()
+    with open(args.bake, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return {"runs": args.runs, "samples": args.samples, "res": args.res,
+            "repeats": args.repeats, "light": args.light, "rendered": not args.no_render,
+            "qualities": args.qualities, "loom_bake_sha256": h.hexdigest()}
+
+
+def load_done(args, key):
+    """Rows of fabric/tier pairs already measured (--resume), or none."""
+    path = os.path.join(args.out, "done.json")
+    if not args.resume or not os.path.exists(path):
+        return []
+    with open(path, encoding="utf-8") as f:
+        done = json.load(f)
+    if done.get("settings") != key:
+        diff = sorted(k for k in key if done.get("settings", {}).get(k) != key[k])
+        raise SystemExit(f"loom-trade: --resume: {path} was measured with other settings "
+                         f"({', '.join(diff)} differ); run without --resume to start afresh")
+    log(f"resuming: {len({(r['fabric'], r['tier']) for r in done['rows']})} fabric/tier pairs "
+        f"already measured")
+    return done["rows"]
+
+
+def save_done(args, key, rows):
+    """done.json, written whole or not at all, after each fabric/tier pair."""
+    path = os.path.join(args.out, "done.json")
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump({"settings": key, "rows": rows}, f, indent=1)
+    os.replace(tmp, path)
+
+
 def measure(args):
-    rows = []
+    key = settings_key(args)
+    rows = load_done(args, key)
+    wanted = {(f, t) for t in args.tiers
+              for f in (args.raywave_fabrics if t == "raywave" else args.fabrics)}
+    measured = {(r["fabric"], r["tier"]) for r in rows}
     atlas_root = os.path.join(args.out, "atlases")
     fabrics = list(dict.fromkeys(args.fabrics + args.raywave_fabrics))
     for fabric in fabrics:
         for tier in args.tiers:
             if fabric not in (args.raywave_fabrics if tier == "raywave" else args.fabrics):
+                continue
+            if (fabric, tier) in measured:
                 continue
             spec = write_spec(fabric, tier, args.out)
             atlases = {}
@@ -217,7 +263,9 @@ def measure(args):
                                    principled_s=by["principled_sheen"]["median_s"])
                 log(f"{fabric} {tier}: rendered; reference vs another seed "
                     f"{r['noise_floor']:.4f}")
-    return rows
+            save_done(args, key, rows)
+            write_outputs([r for r in rows if (r["fabric"], r["tier"]) in wanted], args)
+    return [r for r in rows if (r["fabric"], r["tier"]) in wanted]
 
 
 COLUMNS = ("fabric", "tier", "quality", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",

@@ -8,14 +8,16 @@
 #   bash scripts/trade.sh [--fabrics A,B] [--tiers surface,raywave] [--raywave-fabrics A,B]
 #                         [--qualities draft,final] [--runs 3] [--samples 16] [--res 96]
 #                         [--repeats 3] [--light front|back] [--no-render]
-#                         [--lobes FABRIC:QUALITY:THETA_I:H:SIGMA|none] [--out DIR]
+#                         [--lobes FABRIC:QUALITY:THETA_I:H:SIGMA|none] [--out DIR] [--resume]
 # Writes DIR (default out/trade): trade.csv, trade.json, trade.md (the summary), pareto.png
 # (error against render-time ratio) and lobes.png (each fitted lobe at one (theta_i, h, sigma)
 # beside the simulation). Everything (11 fabrics x 2 tiers x 4 presets, 3 runs) takes hours on
 # 2 cores, mostly the ray-wave reference bakes; --runs 1 or a subset of --fabrics is quicker.
+# Each fabric and tier, once measured, is kept in DIR/done.json: --resume (same settings, same
+# loom-bake binary) measures only the rest, so a long run can be split over several sittings.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-case ${1:-} in -h|--help) sed -n '2,15p' "$0"; exit 0 ;; esac
+case ${1:-} in -h|--help) sed -n '2,17p' "$0"; exit 0 ;; esac
 bash "$here/scripts/setup.sh"
 LOOM_BUILD_DIR=$here/build bash "$here/scripts/build.sh" >/dev/null
 # Debian's python3 (its numpy and matplotlib), whatever python3 comes first on PATH.

@@ -41,8 +41,8 @@ struct Fabric {
   explicit Fabric(const FabricSpec& s)
       : spec(s),
         w(make_weave(s.weave)),
-        sx(1e4 / s.weft_per_cm),
-        sy(1e4 / s.warp_per_cm),
+        sx(woven_spacing(s).x),
+        sy(woven_spacing(s).y),
         warp(ply_params_from_yarn(s.warp)),
         weft(ply_params_from_yarn(s.weft)) {}
   int period(bool is_warp) const { return is_warp ? w.cols() : w.rows(); }

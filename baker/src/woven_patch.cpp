@@ -8,8 +8,12 @@
 
 namespace loom {
 
+WovenSpacing woven_spacing(const FabricSpec& s) {
+  return {1e4 / s.weft_per_cm, 1e4 / s.warp_per_cm};  // yarns per cm -> um between yarns
+}
+
 Vec3d woven_vertex(const FabricSpec& s, const Weave& w, bool warp, int64_t index, int64_t m) {
-  const double sy = 1e4 / s.warp_per_cm, sx = 1e4 / s.weft_per_cm;  // um between yarns
+  const auto [sx, sy] = woven_spacing(s);
   const double h = 0.125 * (s.warp.yarn_diameter_um + s.weft.yarn_diameter_um);
   const int64_t r = warp ? index : m, c = warp ? m : index;
   const bool over = w.at(int(r % w.rows()), int(c % w.cols())) != 0;  // warp on top

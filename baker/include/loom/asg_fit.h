@@ -95,7 +95,10 @@ struct AsgTable {
 /// organza at `final`: lobes of mu ~ 1000 holding 2.4-4x the simulated energy, so the presets
 /// did not converge towards `reference`). At half a bin the centres' Riemann sum of a lobe
 /// equals its integral within 3 % wherever it sits. Fits cap mu1, mu2 at
-/// min(AsgFitSettings::mu_max, this), so a finer simulated grid allows sharper lobes.
+/// min(AsgFitSettings::mu_max, this) on the grid they fit (after pooling), so a finer fit grid
+/// allows sharper lobes: 117 at draft and final (24 x 48 bins, final's 48 x 96 pooled), 208 at
+/// preview and reference (32 x 64, reference's 64 x 128 pooled), a standard deviation of 3.8
+/// and 2.8 degrees.
 double asg_resolvable_mu(int rows, int cols);
 
 /// Fit f_high (all absorption levels) of a simulation.

@@ -27,6 +27,13 @@ struct PatchYarn {
   uint32_t seed_index = 0;  ///< the yarn index of section 5.3's consistent seeding
 };
 
+/// The spacing (um) between neighbouring yarns of the woven fabric: the weft's along x (the warp
+/// yarns' vertex step), the warp's along y.
+struct WovenSpacing {
+  double x = 0, y = 0;
+};
+WovenSpacing woven_spacing(const FabricSpec& s);
+
 /// Vertex m (um) of warp row / weft column `index` of the unbounded fabric woven by `w` (the
 /// spec's weave) at the spec's spacings, with the crossing height h of the choices above: the
 /// one statement of the woven geometry, for patches and for regions (fiber_region.h) alike.
