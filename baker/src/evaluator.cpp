@@ -54,10 +54,39 @@ const char* kMaps[] = {"ply_frame",   "ply_normal",      "yarn_info", "albedo_re
 
 }  // namespace
 
+SurfacePoint guard_surface_point(const SurfacePoint& in) {
+  // Ranges: what the baker writes (ply_maps.cpp) within the spec's own limits (spec.cpp):
+  // roughness 0.001-1, optical thickness 0.01-100 (Inf: the thickest slab the model takes),
+  // IOR 1-3, albedos, gap and blend 0-1, h -1..1, yarn kind 0 (gap) to 2 (weft), horizon sines.
+  SurfacePoint p = in;
+  texel_guard_frame(p.t, p.n_p);
+  p.h = texel_guard(p.h, -1, 1, 0);
+  p.height = texel_guard(p.height, -1e6f, 1e6f, 0);
+  p.kind = texel_guard(p.kind, 0, 2, 0);
+  p.along = texel_guard(p.along, 0, 1, 0);
+  p.ply_id = texel_guard(p.ply_id, 0, 1, 0);
+  p.gap = texel_guard(p.gap, 0, 1, 0);
+  p.k_rd = texel_guard_color(p.k_rd, 0, 1, 0);
+  p.k_td = texel_guard_color(p.k_td, 0, 1, 0);
+  p.k_rs = texel_guard(p.k_rs, 0, 1, 0);
+  p.k_ts = texel_guard(p.k_ts, 0, 1, 0);
+  p.roughness = texel_guard(p.roughness, 0.001f, 1, 0.25f);
+  p.thickness = texel_guard(p.thickness, 0, 1e4f, 1);
+  p.blend = texel_guard(p.blend, 0, 1, 0.5f);
+  p.ior = texel_guard(p.ior, 1, 3, 1.5f);
+  for (float& s : p.horizon) s = texel_guard(s, -1, 1, 0);
+  p.u = std::isfinite(p.u) ? p.u - std::floor(p.u) : 0.0f;
+  p.v = std::isfinite(p.v) ? p.v - std::floor(p.v) : 0.0f;
+  p.du = texel_guard(p.du, 0, 1, 0);
+  p.dv = texel_guard(p.dv, 0, 1, 0);
+  return p;
+}
+
 SurfacePoint sample_surface(const Atlas& a, float u, float v) {
-  // Wrap first (any finite u, v; also keeps the texel index arithmetic in range).
-  u -= std::floor(u);
-  v -= std::floor(v);
+  // Wrap first (any finite u, v; also keeps the texel index arithmetic in range; a non-finite
+  // one reads the repeat's corner).
+  u = std::isfinite(u) ? u - std::floor(u) : 0.0f;
+  v = std::isfinite(v) ? v - std::floor(v) : 0.0f;
   float vals[8][4];
   for (int k = 0; k < 8; ++k) bilinear(a.map(kMaps[k]), u, v, vals[k]);
   SurfacePoint p = from_values(vals[0], vals[1], vals[2], vals[3], vals[4], vals[5], vals[6],
@@ -78,7 +107,7 @@ SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
 
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,
                                Evaluator e, Backend backend) {
-  SurfacePoint p = p_in;
+  const SurfacePoint p = guard_surface_point(p_in);
   if (!(std::isfinite(wi.x) && std::isfinite(wi.y) && std::isfinite(wi.z) &&
         std::isfinite(wo.x) && std::isfinite(wo.y) && std::isfinite(wo.z)))
     return {0, 0, 0};  // like the model: a non-finite direction scatters nothing

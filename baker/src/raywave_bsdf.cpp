@@ -224,7 +224,13 @@ RaywaveData load_raywave(const Atlas& a) {
     d.yarn[y] = load_ply_tables(a, yarn);
     const json& e = d.yarn[y].entry;
     const json& s = e["absorption"]["sigma_rgb_per_mm"];
-    for (int c = 0; c < 3; ++c) d.sigma_rgb[y][size_t(c)] = s.at(size_t(c)).get<double>();
+    for (int c = 0; c < 3; ++c) {
+      d.sigma_rgb[y][size_t(c)] = s.at(size_t(c)).get<double>();
+      if (!(d.sigma_rgb[y][size_t(c)] >= 0))
+        throw std::runtime_error(fmt::format("raywave.yarns.{}.absorption.sigma_rgb_per_mm: {} is "
+                                             "negative (allowed: 0 or more, 1/mm)",
+                                             yarn, d.sigma_rgb[y][size_t(c)]));
+    }
     d.nodes_high[y] = &a.map(e["files"]["high"].get<std::string>());
     d.nodes_refl[y] = &a.map(e["files"]["refl"].get<std::string>());
     d.tint[y] = &a.map(e["files"]["tint"].get<std::string>());
@@ -342,8 +348,17 @@ struct RaywavePoint::Impl {
 
 namespace {
 
-RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e,
+/// A yarn's absorption (1/mm) as the tables take it: NaN none, negative none, at most 1e12 (far
+/// beyond the tables' largest level, where the lobes are already gone).
+double guard_sigma(double s) { return std::isnan(s) ? 0.0 : std::clamp(s, 0.0, 1e12); }
+
+RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 wo, Evaluator e,
                            bool gap_diffraction) {
+  // Texels and absorption outside their ranges are brought back first (guard_surface_point).
+  const SurfacePoint p = guard_surface_point(p_in);
+  std::array<double, 3> sigma[2];
+  for (int y = 0; y < 2; ++y)
+    for (size_t c = 0; c < 3; ++c) sigma[y][c] = guard_sigma(d.sigma_rgb[y][c]);
   RaywavePoint::Impl q;
   q.e = e;
   if (!(std::isfinite(wo.x) && std::isfinite(wo.y) && std::isfinite(wo.z)) || wo.z == 0.0f)
@@ -367,7 +382,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
   const int side = q.back ? 1 : 0;
   std::array<double, 3> sig_layers;
   for (int c = 0; c < 3; ++c)
-    sig_layers[size_t(c)] = 0.5 * (d.sigma_rgb[0][size_t(c)] + d.sigma_rgb[1][size_t(c)]);
+    sig_layers[size_t(c)] = 0.5 * (sigma[0][size_t(c)] + sigma[1][size_t(c)]);
   if (gap_diffraction && d.diffraction.present && p.gap > 0) {
     const GapDiffraction& g = d.diffraction;
     q.dif = &g;
@@ -413,14 +428,14 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p, vec3 wo,
   if (e == Evaluator::Model) {
     q.refl = asg_table_lobes(d.yarn[y].refl, theta_i, h, 0.0);
     for (int c = 0; c < 3; ++c) {
-      q.high[c] = asg_table_lobes(d.yarn[y].high, theta_i, h, d.sigma_rgb[y][size_t(c)]);
+      q.high[c] = asg_table_lobes(d.yarn[y].high, theta_i, h, sigma[y][size_t(c)]);
       const DoubleLayerFactors f = double_layer_at(d.layers[side], q.V, sig_layers[size_t(c)]);
       q.rho_b[size_t(c)] = safe_ratio(f.Btotal, f.Bt);
       q.rho_f[size_t(c)] = safe_ratio(f.Ftotal, f.Ft);
       q.f_total[size_t(c)] = float(std::max(f.Ftotal, 0.0));
       double rb, rf, hb, hf;
       asg_residual_at(d.yarn[y].refl, theta_i, h, 0.0, rb, rf);
-      asg_residual_at(d.yarn[y].high, theta_i, h, d.sigma_rgb[y][size_t(c)], hb, hf);
+      asg_residual_at(d.yarn[y].high, theta_i, h, sigma[y][size_t(c)], hb, hf);
       q.res_b[size_t(c)] = float(rb + hb);
       q.res_f[size_t(c)] = float(rf + hf);
     }

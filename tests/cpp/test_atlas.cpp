@@ -1,13 +1,17 @@
 // Atlas contract: bake, validate, reject broken atlases, reuse, CLI behaviour, evaluators.
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
 #include <random>
 #include <sstream>
+#include <thread>
 
 #include "loom/atlas.h"
 #include "test_util.h"
@@ -264,6 +268,72 @@ TEST(AtlasCli, ConcurrentBakesOfOneSpecLeaveOneValidAtlas) {
   EXPECT_EQ(leftovers, 0);
 }
 
+TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
+  // SIGKILL (no clean-up possible) at moments spread over a bake: first into an empty place,
+  // then re-baking over an existing atlas. The place holds either a complete, valid atlas (the
+  // old or the new one) or nothing, never a half one; the next bake sweeps the dead bakes'
+  // temporaries.
+  const auto d = scratch("killed.atlas");
+  const std::string prefix = ".killed.atlas.tmp-";
+  auto spawn = [](const std::string& quality, const fs::path& out) {
+    pid_t pid = fork();
+    if (pid == 0) {
+      FILE* null = std::fopen("/dev/null", "w");
+      dup2(fileno(null), 1);
+      dup2(fileno(null), 2);
+      execl(LOOM_BAKE_EXE, LOOM_BAKE_EXE, "bake", "plain", "--quality", quality.c_str(),
+            "--force", "--progress=none", "-o", out.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    return pid;
+  };
+  auto temporaries = [&] {
+    int n = 0;
+    for (auto& e : fs::directory_iterator(d.parent_path()))
+      n += e.path().filename().string().rfind(prefix, 0) == 0;
+    return n;
+  };
+  using clock = std::chrono::steady_clock;
+  // How long a whole bake takes on this machine (and this build).
+  const auto t0 = clock::now();
+  int status = 0;
+  waitpid(spawn("preview", scratch("timing.atlas")), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  const auto whole = clock::now() - t0;
+  // Kill the bake at `fraction` of its run after its temporary appears; true if it was killed.
+  auto bake_and_kill = [&](const std::string& quality, double fraction) {
+    const pid_t pid = spawn(quality, d);
+    int st = 0;
+    while (temporaries() == 0 && waitpid(pid, &st, WNOHANG) == 0)
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    if (waitpid(pid, &st, WNOHANG) != 0) return false;
+    std::this_thread::sleep_for(std::chrono::duration_cast<clock::duration>(whole * fraction));
+    kill(pid, SIGKILL);
+    waitpid(pid, &st, 0);
+    return WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL;
+  };
+  ASSERT_TRUE(bake_and_kill("preview", 0.3)) << "the first bake ended before it could be killed";
+  EXPECT_FALSE(fs::exists(d)) << "a killed first bake published an atlas";
+  EXPECT_EQ(temporaries(), 1) << "the killed bake's temporary";
+  waitpid(spawn("draft", d), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  EXPECT_TRUE(loom::validate_atlas(d).empty());
+  EXPECT_EQ(temporaries(), 0) << "the dead bake's temporary was not swept";
+  int killed = 0;
+  for (int k = 0; k < 8; ++k) {
+    killed += bake_and_kill("preview", (k + 0.5) / 8.0);
+    json m;
+    const auto errors = loom::validate_atlas(d, &m);
+    ASSERT_TRUE(errors.empty()) << "after a kill at " << (k + 0.5) / 8.0 << " of a bake: "
+                                << ::testing::PrintToString(errors);
+  }
+  EXPECT_GE(killed, 4) << "too few bakes were killed before they ended";
+  waitpid(spawn("draft", d), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  EXPECT_TRUE(loom::validate_atlas(d).empty());
+  EXPECT_EQ(temporaries(), 0);
+}
+
 TEST(Evaluators, RandomSweepNeverNaNNorInf) {
   // A million (wi, wo) pairs per evaluator over random texels: uniform directions, plus grazing
   // (|cos| down to 1e-6 and exactly 0), mirrored, opposite and non-finite ones.
@@ -286,13 +356,19 @@ TEST(Evaluators, RandomSweepNeverNaNNorInf) {
       default: return vec3(d.x, inf, d.z);
     }
   };
-  int bad = 0;
-  for (auto e : {loom::Evaluator::Model, loom::Evaluator::Closures})
+  // The model, and the closures as node mode and as the OSL shader build them.
+  const std::pair<loom::Evaluator, loom::Backend> evaluators[] = {
+      {loom::Evaluator::Model, loom::Backend::Nodes},
+      {loom::Evaluator::Closures, loom::Backend::Nodes},
+      {loom::Evaluator::Closures, loom::Backend::Osl}};
+  for (auto [e, b] : evaluators) {
+    int bad = 0;
     for (int n = 0; n < 1000000; ++n) {
       int ki = (n % 97 == 0) ? 4 + (n / 97) % 2 : (n % 7 == 0 ? 1 + (n / 7) % 3 : 0);
       vec3 wi = dir(ki), wo = n % 11 == 0 ? -wi : dir(n % 13 == 0 ? 1 + n % 3 : 0);
-      auto f = loom::eval_bsdf(a, pts[n & 255], wi, wo, e);
+      auto f = loom::eval_bsdf(a, pts[n & 255], wi, wo, e, b);
       for (float c : f) bad += !(std::isfinite(c) && c >= 0.0f);
     }
-  EXPECT_EQ(bad, 0);
+    EXPECT_EQ(bad, 0) << int(e) << " " << int(b);
+  }
 }

@@ -33,6 +33,12 @@ SurfacePoint sample_surface(const Atlas& a, float u, float v);
 /// The exact texel (ix, iy) (row iy from the bottom).
 SurfacePoint texel_surface(const Atlas& a, int ix, int iy);
 
+/// p with every field in the range the baker writes (texel_guard.h): NaN to the field's neutral
+/// value, anything else outside its range to the nearest end, a degenerate ply frame to a valid
+/// one. The identity for every texel of a valid atlas; both tiers' evaluators apply it first, so
+/// no texel value can make them return NaN, Inf or a negative value.
+SurfacePoint guard_surface_point(const SurfacePoint& p);
+
 enum class Evaluator { Model, Closures };
 /// Which Cycles front end builds the closures: node mode (SVM) or the OSL shader. They differ in
 /// one place: SVM's Translucent BSDF raises its normal with ensure_valid_specular_reflection.

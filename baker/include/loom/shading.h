@@ -6,6 +6,7 @@
 namespace loom::shading {}
 #include "../../../osl/include/loom/osl_compat.h"
 namespace loom::shading {
+#include "../../../osl/include/loom/texel_guard.h"
 #include "../../../osl/include/loom/sggx.h"
 #include "../../../osl/include/loom/spongecake.h"
 #include "../../../osl/include/loom/visibility.h"
