@@ -8,8 +8,8 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
 
 * Lobe tables (ply_high_*, ply_refl_*), their tints (ply_tint_*), the double-layer factors
   (layer_factors_*) and the microfacet albedo LUT are Image Textures with EXTEND; the node images
-  and the factors are read 'Linear' (a bilinear look-up between node texels *is* Eq. S.7), the
-  tints 'Closest' at their texel centres. Image coordinates are the headers' (s from the left,
+  the tints (one texel per node, like the lobes) and the factors are read 'Linear' (a bilinear
+  look-up between node texels *is* Eq. S.7). Image coordinates are the headers' (s from the left,
   tv from the bottom), which is how Blender maps an image's vector input.
 * Warp and weft: OSL picks the yarn's files with an ``if``; nodes cannot choose an image, so each
   yarn's texels are read and the values are selected (yarn_info.r > 1.5: weft). Yarns that share
@@ -50,6 +50,9 @@ from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, exp
 GROUP_PREFIX = "Loom Ray-wave"
 SHADER = "loom_cloth_raywave.osl"
 MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
+# The lobe tables' layout this module reads: the manifest's raywave.yarns.<yarn>.node_layout, as
+# loom-bake writes it (baker/include/loom/ply_tables.h: kAsgNodeLayout).
+NODE_LAYOUT = "lobe-major/node-scales"
 
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
@@ -63,13 +66,13 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "f13059f7d48bcf84",
+    "include/loom/raywave_lobes.h": "63374aef72da6d3d",
     "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "bd89159b48c5dfee",
+    "loom_cloth_raywave.osl": "16918456c22f417b",
 }
 
 
@@ -183,11 +186,6 @@ def asg_node_coord(x, lo, hi, n):
     return 0.5 * max_(u, 0.0)
 
 
-def asg_block_index(c, n):
-    """raywave_lobes.h: asg_block_index(c, n) = max(0, min(floor(c), (n - 1) / 2 - 1))."""
-    return max_(0.0, min_(floor(c), float((n - 1) // 2 - 1)))
-
-
 def asg_node_uv(fi, fj, part, lobe, lobes, rows, cols, K):
     """raywave_lobes.h: asg_node_uv -> (s, tv).
 
@@ -202,10 +200,15 @@ def asg_node_uv(fi, fj, part, lobe, lobes, rows, cols, K):
     return s, (i + 0.5) / rows
 
 
-def asg_tint_uv(bm, bn, lobe, lobes, mb, nb):
-    """raywave_lobes.h: asg_tint_uv -> (s, tv) = ((lobe nb + bn + 0.5) / (lobes nb),
-    (bm + 0.5) / mb)."""
-    return (bn + (lobe * nb + 0.5)) / (lobes * nb), (bm + 0.5) / mb
+def asg_tint_uv(fi, fj, lobe, lobes, rows, cols):
+    """raywave_lobes.h: asg_tint_uv -> (s, tv).
+
+        i = clamp(fi, 0, rows - 1); j = clamp(fj, 0, cols - 1)
+        s = (lobe cols + j + 0.5) / (lobes cols); tv = (i + 0.5) / rows
+    """
+    i = clamp(fi, 0.0, rows - 1.0)
+    j = clamp(fj, 0.0, cols - 1.0)
+    return (j + (lobe * cols + 0.5)) / (lobes * cols), (i + 0.5) / rows
 
 
 def asg_lobe_reflection(V_, z, x, y, mu1, mu2, K):
@@ -649,9 +652,10 @@ def atlas_problem(manifest: dict) -> str | None:
         rw = manifest["raywave"]
         textures = manifest["textures"]
         for y in ("warp", "weft"):
-            if rw["yarns"][y].get("node_layout") != "lobe-major":
-                return ("its lobe tables predate the lobe-major layout: re-bake the atlas with "
-                        "this version of loom-bake")
+            if rw["yarns"][y].get("node_layout") != NODE_LAYOUT:
+                return (f"its lobe tables are not in the {NODE_LAYOUT!r} layout this add-on reads "
+                        f"(they are {rw['yarns'][y].get('node_layout')!r}): re-bake the atlas with "
+                        f"this version of loom-bake")
         _grid(manifest)
         needed = set(MAPS) | {rw["shading"]["microfacet_albedo"],
                               *rw["shading"]["factors"].values()}
@@ -685,7 +689,7 @@ def atlas_problem(manifest: dict) -> str | None:
         files = rw["yarns"][y]["files"]
         want = {files["high"]: [parts * g["high_lobes"] * cols, rows],
                 files["refl"]: [parts * g["refl_lobes"] * cols, rows],
-                files["tint"]: [g["high_lobes"] * (cols - 1), rows - 1],
+                files["tint"]: [g["high_lobes"] * cols, rows],
                 files["residual"]: [2 * g["n"], g["m"]]}
         for name, size in want.items():
             got = list(textures[name].get("size", []))
@@ -989,11 +993,9 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         rho_b, rho_f, f_total = (b.label(f, n) for f, n in zip(fac, ("rho_b", "rho_f",
                                                                      "F_total")))
 
-    with b.block("raywave_lobes.h: asg_node_coord, asg_block_index"):
+    with b.block("raywave_lobes.h: asg_node_coord"):
         fi = b.label(asg_node_coord(theta_i, g["theta_min"], g["theta_max"], M), "fi")
         fj = b.label(asg_node_coord(h, g["h_min"], g["h_max"], N_), "fj")
-        bm = asg_block_index(fi, M)
-        bn = asg_block_index(fj, N_)
 
     # ---------------------------------------------------------------- lobes
     lobe_outputs = []
@@ -1012,8 +1014,8 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                 p1, _ = table(f, s1, t1, what=f"lobe {l} part 1")
                 nodes_of[f] = (p0, mu1, p1)
             if tf not in tint_of:
-                ts, tt = asg_tint_uv(bm, bn, l, lobes, rows - 1, cols - 1)
-                tint_of[tf], _ = table(tf, ts, tt, interp="Closest", what=f"lobe {l}")
+                ts, tt = asg_tint_uv(fi, fj, l, lobes, rows, cols)
+                tint_of[tf], _ = table(tf, ts, tt, what=f"lobe {l}")
             per_yarn[y] = (*nodes_of[f], tint_of[tf])
         return tuple(a if a is e else select(weft, e, a)
                      for a, e in zip(per_yarn["warp"], per_yarn["weft"]))

@@ -398,75 +398,122 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
   t.sigmas = refl ? std::vector<double>{0.0} : sim.settings.sigmas;
   for (int i = 0; i < rows * cols * L; ++i) t.nodes.push_back(lobe_from(&nodes[size_t(i * kQ)]));
 
-  // Scale-downs (S.9) per block, and the fit errors.
-  t.scale.assign(size_t(Mb * Nb * K * L), 1.0);
-  t.block_nrmse.assign(size_t(Mb * Nb), 0.0);
-  std::vector<double> err_k(size_t(K), 0.0), norm_k(size_t(K), 0.0);
-  for (int bm = 0; bm < Mb; ++bm)
-    for (int bn = 0; bn < Nb; ++bn) {
-      const size_t blk = size_t(bm * Nb + bn);
-      // Lobe values G_l on every bin of the block's nine slices.
-      std::vector<std::vector<double>> G(9, std::vector<double>(g.bins() * size_t(L)));
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-          auto w = corner_weights(a / 2.0, b / 2.0);
-          std::vector<double> q(size_t(kQ * L), 0.0);
-          const double* cs[4] = {node(bm, bn), node(bm, bn + 1), node(bm + 1, bn),
-                                 node(bm + 1, bn + 1)};
-          for (int c = 0; c < 4; ++c)
-            for (int i = 0; i < kQ * L; ++i) q[size_t(i)] += w[size_t(c)] * cs[c][i];
-          for (size_t bin = 0; bin < g.bins(); ++bin)
-            for (int l = 0; l < L; ++l) {
-              const double* ql = &q[size_t(kQ * l)];
-              G[size_t(a * 3 + b)][bin * size_t(L) + size_t(l)] =
-                  sh::asg_eval(float(ql[0]), float(ql[1]), float(ql[2]), float(ql[3]),
-                               float(ql[4]), float(ql[5]), g.dir[bin]);
-            }
+  // Lobe values G_l on every bin of every slice (a slice on a block border belongs to both
+  // blocks and has the same lobes in each: the corners are shared).
+  const size_t S = size_t(M) * size_t(N), B = g.bins();
+  struct SliceNodes {
+    int node[4];
+    double w[4];
+  };
+  std::vector<SliceNodes> at(S);
+  std::vector<double> G(S * B * size_t(L));
+  for (int m = 0; m < M; ++m)
+    for (int n = 0; n < N; ++n) {
+      const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
+      const auto w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
+      SliceNodes& sn = at[slice_index(m, n)];
+      const int cn[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
+      std::vector<double> q(size_t(kQ * L), 0.0);
+      for (int c = 0; c < 4; ++c) {
+        sn.node[c] = cn[c][0] * cols + cn[c][1];
+        sn.w[c] = w[size_t(c)];
+        for (int i = 0; i < kQ * L; ++i) q[size_t(i)] += w[size_t(c)] * node(cn[c][0], cn[c][1])[i];
+      }
+      double* Gs = &G[slice_index(m, n) * B * size_t(L)];
+      for (size_t bin = 0; bin < B; ++bin)
+        for (int l = 0; l < L; ++l) {
+          const double* ql = &q[size_t(kQ * l)];
+          Gs[bin * size_t(L) + size_t(l)] =
+              sh::asg_eval(float(ql[0]), float(ql[1]), float(ql[2]), float(ql[3]), float(ql[4]),
+                           float(ql[5]), g.dir[bin]);
         }
-      double* sc = &t.scale[blk * size_t(K * L)];
-      for (int k = 0; k < K; ++k) {
-        double* sk = sc + k * L;
-        if (k > 0) {
-          // Normal equations of the bounded least squares for s_{., k}.
-          std::vector<double> A(size_t(L * L), 0.0), rhs(size_t(L), 0.0);
-          for (int sl = 0; sl < 9; ++sl) {
-            const double* f = g.slice(slice_index(2 * bm + sl / 3, 2 * bn + sl % 3), k);
-            for (size_t bin = 0; bin < g.bins(); ++bin) {
-              const double* Gb = &G[size_t(sl)][bin * size_t(L)];
-              for (int l = 0; l < L; ++l) {
-                rhs[size_t(l)] += g.weight[bin] * Gb[l] * f[bin];
-                for (int m = 0; m < L; ++m) A[size_t(l * L + m)] += g.weight[bin] * Gb[l] * Gb[m];
-              }
-            }
-          }
-          const double* prev = sc + (k - 1) * L;
-          for (int l = 0; l < L; ++l) sk[l] = prev[l];
-          for (int sweep = 0; sweep < 200; ++sweep)
-            for (int l = 0; l < L; ++l) {
-              double diag = A[size_t(l * L + l)];
-              if (!(diag > 1e-300)) continue;  // a lobe with no support keeps s_{l,k-1}
-              double r = rhs[size_t(l)];
-              for (int m = 0; m < L; ++m)
-                if (m != l) r -= A[size_t(l * L + m)] * sk[m];
-              sk[l] = std::clamp(r / diag, 0.0, prev[l]);
-            }
+    }
+  // Scale-downs (S.9) at the corner nodes, interpolated like the lobes (S.7's weights).
+  const int U = rows * cols * L;  // unknowns of one level: node-major, then lobe
+  t.scale.assign(size_t(U * K), 1.0);
+  if (K > 1) {
+    // Normal equations of sum_slices sum_bins Omega (sum_{c,l} w_c s_{c,l} G_l - f)^2: the Gram
+    // matrix of the lobes per slice (the same at every level), spread over the slice's corners.
+    std::vector<double> A(size_t(U) * size_t(U), 0.0);
+    std::vector<double> gram(size_t(L * L));
+    for (size_t sl = 0; sl < S; ++sl) {
+      std::fill(gram.begin(), gram.end(), 0.0);
+      const double* Gs = &G[sl * B * size_t(L)];
+      for (size_t bin = 0; bin < B; ++bin)
+        for (int l = 0; l < L; ++l)
+          for (int l2 = 0; l2 < L; ++l2)
+            gram[size_t(l * L + l2)] += g.weight[bin] * Gs[bin * size_t(L) + size_t(l)] *
+                                        Gs[bin * size_t(L) + size_t(l2)];
+      const SliceNodes& sn = at[sl];
+      for (int c = 0; c < 4; ++c)
+        for (int c2 = 0; c2 < 4; ++c2) {
+          const double ww = sn.w[c] * sn.w[c2];
+          if (ww == 0) continue;
+          for (int l = 0; l < L; ++l)
+            for (int l2 = 0; l2 < L; ++l2)
+              A[size_t(sn.node[c] * L + l) * size_t(U) + size_t(sn.node[c2] * L + l2)] +=
+                  ww * gram[size_t(l * L + l2)];
         }
-        // Errors of this level over the block's slices.
-        double e = 0, n = 0;
-        for (int sl = 0; sl < 9; ++sl) {
-          const double* f = g.slice(slice_index(2 * bm + sl / 3, 2 * bn + sl % 3), k);
-          for (size_t bin = 0; bin < g.bins(); ++bin) {
-            double m = 0;
-            for (int l = 0; l < L; ++l) m += sk[l] * G[size_t(sl)][bin * size_t(L) + size_t(l)];
-            e += g.weight[bin] * (m - f[bin]) * (m - f[bin]);
-            n += g.weight[bin] * f[bin] * f[bin];
-          }
+    }
+    std::vector<double> rhs(static_cast<size_t>(U));
+    for (int k = 1; k < K; ++k) {
+      std::fill(rhs.begin(), rhs.end(), 0.0);
+      for (size_t sl = 0; sl < S; ++sl) {
+        const double* f = g.slice(sl, k);
+        const double* Gs = &G[sl * B * size_t(L)];
+        for (int l = 0; l < L; ++l) {
+          double r = 0;
+          for (size_t bin = 0; bin < B; ++bin) r += g.weight[bin] * Gs[bin * size_t(L) + size_t(l)] * f[bin];
+          for (int c = 0; c < 4; ++c) rhs[size_t(at[sl].node[c] * L + l)] += at[sl].w[c] * r;
         }
-        if (k == 0) t.block_nrmse[blk] = n > 0 ? std::sqrt(e / n) : 0.0;
-        err_k[size_t(k)] += e;
-        norm_k[size_t(k)] += n;
+      }
+      // Bounded least squares 0 <= s_k <= s_{k-1} by projected Gauss-Seidel, from s_{k-1}.
+      const double* prev = &t.scale[size_t((k - 1) * U)];
+      double* sk = &t.scale[size_t(k * U)];
+      std::copy(prev, prev + U, sk);
+      for (int sweep = 0; sweep < 1000; ++sweep) {
+        double change = 0;
+        for (int u = 0; u < U; ++u) {
+          const double* Au = &A[size_t(u) * size_t(U)];
+          const double diag = Au[u];
+          if (!(diag > 1e-300)) continue;  // a lobe with no support keeps s_{k-1}
+          double r = rhs[size_t(u)];
+          for (int v = 0; v < U; ++v)
+            if (v != u) r -= Au[v] * sk[v];
+          const double next = std::clamp(r / diag, 0.0, prev[u]);
+          change = std::max(change, std::fabs(next - sk[u]));
+          sk[u] = next;
+        }
+        if (change < 1e-10) break;
       }
     }
+  }
+  // Fit errors: per block over its nine slices (f_0), and per level over all slices.
+  auto scale_at = [&](size_t sl, int k, int l) {
+    double v = 0;
+    for (int c = 0; c < 4; ++c) v += at[sl].w[c] * t.scale[size_t(k * U + at[sl].node[c] * L + l)];
+    return v;
+  };
+  auto slice_error = [&](size_t sl, int k, double& e, double& n) {
+    const double* f = g.slice(sl, k);
+    const double* Gs = &G[sl * B * size_t(L)];
+    for (size_t bin = 0; bin < B; ++bin) {
+      double mdl = 0;
+      for (int l = 0; l < L; ++l) mdl += scale_at(sl, k, l) * Gs[bin * size_t(L) + size_t(l)];
+      e += g.weight[bin] * (mdl - f[bin]) * (mdl - f[bin]);
+      n += g.weight[bin] * f[bin] * f[bin];
+    }
+  };
+  t.block_nrmse.assign(size_t(Mb * Nb), 0.0);
+  for (int bm = 0; bm < Mb; ++bm)
+    for (int bn = 0; bn < Nb; ++bn) {
+      double e = 0, n = 0;
+      for (int sl = 0; sl < 9; ++sl) slice_error(slice_index(2 * bm + sl / 3, 2 * bn + sl % 3), 0, e, n);
+      t.block_nrmse[size_t(bm * Nb + bn)] = n > 0 ? std::sqrt(e / n) : 0.0;
+    }
+  std::vector<double> err_k(size_t(K), 0.0), norm_k(size_t(K), 0.0);
+  for (int k = 0; k < K; ++k)
+    for (size_t sl = 0; sl < S; ++sl) slice_error(sl, k, err_k[size_t(k)], norm_k[size_t(k)]);
   for (int k = 0; k < K; ++k)
     t.nrmse_per_sigma.push_back(norm_k[size_t(k)] > 0 ? std::sqrt(err_k[size_t(k)] / norm_k[size_t(k)]) : 0.0);
   t.nrmse = t.nrmse_per_sigma[0];
@@ -513,8 +560,9 @@ std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h
   int k = 0;
   double tt = 0;
   sigma_interval(t.sigmas, sigma, t.absorption, k, tt);
-  const int Nb = (int(t.h.size()) - 1) / 2;
-  const double* sc = &t.scale[size_t((bm * Nb + bn) * K * L)];
+  const int cols = t.node_cols(), U = t.node_rows() * cols * L;
+  const int corner[4] = {bm * cols + bn, bm * cols + bn + 1, (bm + 1) * cols + bn,
+                         (bm + 1) * cols + bn + 1};
   auto w = corner_weights(r, s);
   std::vector<AsgLobe> out(static_cast<size_t>(L));
   for (int l = 0; l < L; ++l) {
@@ -530,7 +578,12 @@ std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h
       q.c += w[size_t(i)] * c[i]->c;
     }
     double scale = 1;
-    if (K > 1) scale = (1 - tt) * sc[k * L + l] + tt * sc[(k + 1) * L + l];  // S.11
+    if (K > 1) {  // S.11 at the corners, then S.7's weights
+      scale = 0;
+      for (int i = 0; i < 4; ++i)
+        scale += w[size_t(i)] * ((1 - tt) * t.scale[size_t(k * U + corner[i] * L + l)] +
+                                 tt * t.scale[size_t((k + 1) * U + corner[i] * L + l)]);
+    }
     q.c *= scale;
     out[size_t(l)] = q;
   }

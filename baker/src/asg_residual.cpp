@@ -9,8 +9,13 @@
 namespace loom {
 
 namespace {
-constexpr int kFractionSteps = 96;  // midpoint nodes per axis of the lobe-frame box
-constexpr double kWidths = 7.0;     // box half-width in units of 1 / sqrt(mu)
+constexpr int kFractionSteps = 2048;  // midpoint nodes in the disk's polar angle
+
+/// Integral of exp(-k rho^2) rho d rho over [r0, r1] (closed form, no cancellation for small k).
+double radial(double k, double r0, double r1) {
+  if (!(k > 1e-12)) return 0.5 * (r1 * r1 - r0 * r0);
+  return 0.5 * std::exp(-k * r0 * r0) * -std::expm1(-k * (r1 * r1 - r0 * r0)) / k;
+}
 }  // namespace
 
 double asg_backward_fraction(const AsgLobe& q) {
@@ -18,24 +23,27 @@ double asg_backward_fraction(const AsgLobe& q) {
   shading::asg_frame(float(q.theta_z), float(q.phi_z), float(q.phi_xy), x, y, z);
   const double m1 = std::clamp(q.mu1, 0.0, double(LOOM_ASG_MU_MAX));
   const double m2 = std::clamp(q.mu2, 0.0, double(LOOM_ASG_MU_MAX));
-  const double A = m1 > 0 ? std::min(1.0, kWidths / std::sqrt(m1)) : 1.0;
-  const double B = m2 > 0 ? std::min(1.0, kWidths / std::sqrt(m2)) : 1.0;
-  const double da = 2 * A / kFractionSteps, db = 2 * B / kFractionSteps;
   double all = 0, back = 0;
   for (int i = 0; i < kFractionSteps; ++i) {
-    const double a = -A + (i + 0.5) * da;
-    for (int j = 0; j < kFractionSteps; ++j) {
-      const double b = -B + (j + 0.5) * db, r2 = a * a + b * b;
-      if (r2 >= 1) continue;
-      // v = a x + b y + s z; the integrand over the disk is exp(-mu1 a^2 - mu2 b^2) (asg.h).
-      const double w = std::exp(-m1 * a * a - m2 * b * b);
-      const double vy = a * x.y + b * y.y + std::sqrt(1 - r2) * z.y;
-      all += w;
-      if (vy > 0) back += w;
+    // On the ray (a, b) = rho (cos psi, sin psi) of the disk, v = a x + b y + sqrt(1 - rho^2) z
+    // and the integrand is exp(-k rho^2) rho, k = mu1 cos^2 + mu2 sin^2 (asg.h).
+    const double psi = (i + 0.5) * 2 * M_PI / kFractionSteps, c = std::cos(psi), sn = std::sin(psi);
+    const double k = m1 * c * c + m2 * sn * sn;
+    const double full = radial(k, 0, 1);
+    all += full;
+    // v.y = rho p + sqrt(1 - rho^2) qz changes sign at most once on [0, 1], at
+    // rho* = |qz| / hypot(p, qz): the backward part is an interval, integrated exactly.
+    const double p = c * x.y + sn * y.y, qz = z.y;
+    if (qz > 0) {
+      back += p >= 0 ? full : radial(k, 0, qz / std::hypot(p, qz));
+    } else if (qz < 0) {
+      if (p > 0) back += radial(k, -qz / std::hypot(p, qz), 1);
+    } else if (p > 0) {
+      back += full;
     }
   }
   if (!(all > 0)) return z.y > 0 ? 1.0 : 0.0;
-  return back / all;
+  return std::clamp(back / all, 0.0, 1.0);
 }
 
 void ply_sim_side_energy(const PlySimSettings& s, const float* density, double& back,

@@ -562,7 +562,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                     "theta_i nodes "
                     "(layout: baker/include/loom/ply_tables.h)");
           add_table(asg_scale_image(pt.high), entry["files"]["high_scale"], {"s"},
-                    "f_high absorption scale-downs s_{l,k}, column bn L + l, row bm K + k "
+                    "f_high absorption scale-downs s_{l,k} per corner node, column j L + l, row i K + k "
                     "(layout: baker/include/loom/ply_tables.h)");
           add_table(asg_nodes_image(pt.refl), entry["files"]["refl"],
                     {"theta_z|mu2", "phi_z|c", "phi_xy|0", "mu1|0"},
@@ -814,7 +814,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           const std::string name = std::string("ply_tint_") + yarn;
           add_table(ply_tint_image(high, sig[i]), name, {"s_r", "s_g", "s_b"},
                     "f_high lobe amplitude scale (Eq. S.10, S.11) at the yarn's absorption per "
-                    "colour channel, column lobe N' + block column, row block row "
+                    "colour channel per corner node, column lobe (N' + 1) + h node, row theta_i node "
                     "(osl/include/loom/raywave_lobes.h)");
           entry["files"]["tint"] = name;
           const std::string rname = std::string("ply_residual_") + yarn;

@@ -56,15 +56,12 @@ Image asg_nodes_image(const AsgTable& t) {
 }
 
 Image asg_scale_image(const AsgTable& t) {
-  const int Mb = int(t.theta_i.size() / 2), Nb = int(t.h.size() / 2), K = int(t.sigmas.size()),
-            L = t.lobes;
-  Image img(Nb * L, Mb * K, 1);
-  for (int bm = 0; bm < Mb; ++bm)
-    for (int bn = 0; bn < Nb; ++bn)
+  const int rows = t.node_rows(), cols = t.node_cols(), K = int(t.sigmas.size()), L = t.lobes;
+  Image img(cols * L, rows * K, 1);
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < cols; ++j)
       for (int k = 0; k < K; ++k)
-        for (int l = 0; l < L; ++l)
-          img.px(bn * L + l, bm * K + k)[0] =
-              float(t.scale[size_t(((bm * Nb + bn) * K + k) * L + l)]);
+        for (int l = 0; l < L; ++l) img.px(j * L + l, i * K + k)[0] = float(t.scale_at(k, i, j, l));
   return img;
 }
 
@@ -213,18 +210,18 @@ AsgTable asg_table_from_images(const json& entry, const std::string& which, cons
         const float* b = nodes.px(shading::asg_node_column(1, l, jj, cols, L), i);
         t.nodes.push_back(AsgLobe{a[0], a[1], a[2], a[3], b[0], b[1]});
       }
-  const int Mb = rows - 1, Nb = cols - 1, K = int(t.sigmas.size());
-  t.scale.assign(size_t(Mb * Nb * K * L), 1.0);
+  const int K = int(t.sigmas.size());
+  t.scale.assign(size_t(rows * cols * K * L), 1.0);
   if (scale) {
-    if (scale->width != Nb * L || scale->height != Mb * K || scale->channels != 1)
+    if (scale->width != cols * L || scale->height != rows * K || scale->channels != 1)
       throw std::runtime_error(fmt::format("{} scale-downs: image is {}x{}x{}, expected {}x{}x1",
                                            which, scale->width, scale->height, scale->channels,
-                                           Nb * L, Mb * K));
-    for (int bm = 0; bm < Mb; ++bm)
-      for (int bn = 0; bn < Nb; ++bn)
+                                           cols * L, rows * K));
+    for (int i = 0; i < rows; ++i)
+      for (int jj = 0; jj < cols; ++jj)
         for (int k = 0; k < K; ++k)
           for (int l = 0; l < L; ++l)
-            t.scale[size_t(((bm * Nb + bn) * K + k) * L + l)] = scale->px(bn * L + l, bm * K + k)[0];
+            t.scale_at(k, i, jj, l) = scale->px(jj * L + l, i * K + k)[0];
   } else if (K != 1) {
     throw std::runtime_error(which + ": several absorption levels but no scale-downs");
   }

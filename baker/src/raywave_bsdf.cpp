@@ -51,13 +51,6 @@ void sample_periodic(const Image& img, float s, float tv, float out[4]) {
   }
 }
 
-/// The texel holding (s, tv) (a look-up at a texel centre).
-const float* texel_at(const Image& img, float s, float tv) {
-  int x = std::clamp(int(std::floor(s * float(img.width))), 0, img.width - 1);
-  int y = std::clamp(int(std::floor(tv * float(img.height))), 0, img.height - 1);
-  return img.px(x, y);
-}
-
 /// A double-layer ratio (Eq. S.21, S.22), 1 where the denominator vanishes, at most 10 (the
 /// geometric series of S.20 can make B_total / B_t large where B_t is tiny at grazing angles;
 /// the cap keeps such texels from turning into fireflies).
@@ -88,21 +81,21 @@ Image ply_residual_rgb_image(const AsgTable& high, const AsgTable& refl,
 }
 
 Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb) {
-  const int Mb = int(high.theta_i.size() / 2), Nb = int(high.h.size() / 2), L = high.lobes,
+  const int rows = high.node_rows(), cols = high.node_cols(), L = high.lobes,
             K = int(high.sigmas.size());
-  Image img(L * Nb, Mb, 3);
-  for (int bm = 0; bm < Mb; ++bm)
-    for (int bn = 0; bn < Nb; ++bn)
-      for (int l = 0; l < L; ++l)
-        for (int c = 0; c < 3; ++c) {
-          int k;
-          double t;
-          sigma_interval(high.sigmas, sigma_rgb[size_t(c)], high.absorption, k, t);
-          const double* sc = &high.scale[size_t((bm * Nb + bn) * K * L)];
+  Image img(L * cols, rows, 3);
+  for (int c = 0; c < 3; ++c) {
+    int k;
+    double t;
+    sigma_interval(high.sigmas, sigma_rgb[size_t(c)], high.absorption, k, t);
+    for (int i = 0; i < rows; ++i)
+      for (int j = 0; j < cols; ++j)
+        for (int l = 0; l < L; ++l) {
           double s = 1;
-          if (K > 1) s = (1 - t) * sc[k * L + l] + t * sc[(k + 1) * L + l];  // S.11
-          img.px(l * Nb + bn, bm)[c] = float(s);
+          if (K > 1) s = (1 - t) * high.scale_at(k, i, j, l) + t * high.scale_at(k + 1, i, j, l);  // S.11
+          img.px(l * cols + j, i)[c] = float(s);
         }
+  }
   return img;
 }
 
@@ -460,7 +453,6 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     const float fi = asg_node_coord(theta_i, float(tab.theta_i.front()),
                                     float(tab.theta_i.back()), M);
     const float fj = asg_node_coord(h, float(tab.h.front()), float(tab.h.back()), N);
-    const int bm = asg_block_index(fi, M), bn = asg_block_index(fj, N);
     for (int l = 0; l < L; ++l) {
       float a[4], b[4], s, tv;
       asg_node_uv(fi, fj, 0, l, L, rows, cols, s, tv);
@@ -469,8 +461,9 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
       sample_clamped(nodes, s, tv, b);
       std::array<float, 3> tintc = {1, 1, 1};
       if (tint) {
-        asg_tint_uv(bm, bn, l, L, rows - 1, cols - 1, s, tv);
-        const float* tp = texel_at(*tint, s, tv);
+        float tp[4];
+        asg_tint_uv(fi, fj, l, L, rows, cols, s, tv);
+        sample_clamped(*tint, s, tv, tp);
         tintc = {tp[0], tp[1], tp[2]};
       }
       RaywaveClosure cl;

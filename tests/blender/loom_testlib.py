@@ -196,3 +196,46 @@ def load_pixels(path: str) -> Image:
 def unit(v):
     n = math.sqrt(sum(c * c for c in v))
     return tuple(c / n for c in v)
+
+
+class FakeLayout:
+    """Records what a panel draws (blender -b has no UI to draw into): ("prop", name),
+    ("label", text), ("operator", idname) and, for an operator's button, ("button", text)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = False
+        self.alert = False
+        self.scale_y = 1.0
+
+    def _child(self, *args, **kwargs):
+        return FakeLayout(self.log)
+
+    row = column = box = split = _child
+
+    def prop(self, data, prop, **kwargs):
+        assert prop in data.bl_rna.properties, f"no property {prop}"
+        self.log.append(("prop", prop))
+
+    def label(self, text="", icon="NONE"):
+        self.log.append(("label", text))
+
+    def operator(self, idname, text="", icon="NONE"):
+        mod, name = idname.split(".")
+        getattr(getattr(bpy.ops, mod), name).get_rna_type()  # raises if not registered
+        self.log.append(("operator", idname))
+        self.log.append(("button", text))
+        from types import SimpleNamespace
+
+        return SimpleNamespace()
+
+
+def draw_material_panel(mat, obj) -> list:
+    """What the Loom material panel draws for `mat` on `obj` (a FakeLayout log)."""
+    from types import SimpleNamespace
+
+    log = []
+    ctx = SimpleNamespace(material=mat, object=obj, window_manager=bpy.context.window_manager,
+                          scene=bpy.context.scene, preferences=bpy.context.preferences)
+    bpy.types.MATERIAL_PT_loom.draw(SimpleNamespace(layout=FakeLayout(log)), ctx)
+    return log

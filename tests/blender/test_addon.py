@@ -117,57 +117,18 @@ def _op_missing(name):
     return False
 
 
-class FakeLayout:
-    """Records what a panel draws (blender -b has no UI to draw into)."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = False
-        self.alert = False
-        self.scale_y = 1.0
-
-    def _child(self, *args, **kwargs):
-        return FakeLayout(self.log)
-
-    row = column = box = split = _child
-
-    def prop(self, data, prop, **kwargs):
-        assert prop in data.bl_rna.properties, f"no property {prop}"
-        self.log.append(("prop", prop))
-
-    def label(self, text="", icon="NONE"):
-        self.log.append(("label", text))
-
-    def operator(self, idname, text="", icon="NONE"):
-        mod, name = idname.split(".")
-        getattr(getattr(bpy.ops, mod), name).get_rna_type()  # raises if not registered
-        self.log.append(("operator", idname))
-        from types import SimpleNamespace
-
-        return SimpleNamespace()
-
-
 def check_panel_draws():
     """Draw the material panel for an object without a Loom material and for a Loom one."""
-    from types import SimpleNamespace
-
     mesh = bpy.data.meshes.new("m")
     mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
     obj = bpy.data.objects.new("o", mesh)
-    panel = bpy.types.MATERIAL_PT_loom
     for mat in (None, bpy.data.materials.new("plain material")):
-        log = []
-        ctx = SimpleNamespace(material=mat, object=obj, window_manager=bpy.context.window_manager,
-                              scene=bpy.context.scene, preferences=bpy.context.preferences)
-        panel.draw(SimpleNamespace(layout=FakeLayout(log)), ctx)
+        log = lt.draw_material_panel(mat, obj)
         assert ("operator", "loom.material_new") in log, log
     mat["loom"] = {"managed": True}
     mat.loom.atlas_dir = "/nonexistent"
     mat.loom.mode_used = "OSL"  # as if built where OSL ran; the panel must warn here
-    log = []
-    ctx = SimpleNamespace(material=mat, object=obj, window_manager=bpy.context.window_manager,
-                          scene=bpy.context.scene, preferences=bpy.context.preferences)
-    panel.draw(SimpleNamespace(layout=FakeLayout(log)), ctx)
+    log = lt.draw_material_panel(mat, obj)
     for item in (("prop", "preset"), ("prop", "quality"), ("prop", "mode"),
                  ("operator", "loom.bake_assign")):
         assert item in log, (item, log)

@@ -47,6 +47,34 @@ def reopen(path):
     return bpy.data.materials["Cloth"]
 
 
+def check_panel(mat, problem):
+    """The material panel says why (the problem, verbatim) and offers the Re-bake button when
+    the atlas has a problem; a sound atlas gets neither."""
+    log = lt.draw_material_panel(mat, bpy.data.objects["Swatch"])
+    offered = ("button", "Re-bake") in log
+    if problem:
+        assert ("label", f"Atlas {problem}") in log, (problem, log)
+        assert offered and ("operator", "loom.bake_assign") in log, log
+        assert any(k == "label" and "fallback" in t for k, t in log), log
+    else:
+        assert not offered and not any(k == "label" and t.startswith("Atlas ") and "fallback"
+                                       in t for k, t in log), log
+
+
+def check_fallback_render(out_dir, name, mat):
+    """A fallback render: finite, not Blender's magenta for missing images, and in the fabric's
+    colour (the fallback BSDF's base colour is the one the material recorded at build time)."""
+    img = render(out_dir, name)
+    means = [img.channel_mean(c) for c in range(3)]
+    print(f"loom-test: {name} fallback render mean {means}")
+    assert all(math.isfinite(m) for m in means) and means[1] > 1e-3, means
+    assert means[1] > 0.5 * min(means[0], means[2]), means
+    rgb = list(mat["loom_fallback_rgb"])
+    fb = mat.node_tree.nodes["Loom Fallback"].inputs["Base Color"].default_value
+    assert all(abs(fb[c] - rgb[c]) < 1e-6 for c in range(3)), (list(fb), rgb)
+    return means
+
+
 def main():
     args = lt.parse_args()
     assert args.atlas, "--atlas is required"
@@ -88,6 +116,7 @@ def main():
     user_node = output_source(mat)
     assert user_node == "My Mix", user_node
     assert not mat.loom.atlas_problem
+    check_panel(mat, "")
     sound = render(args.out, "sound")
     blend = os.path.join(args.out, "fallback.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
@@ -104,16 +133,10 @@ def main():
     names, _ = tree_of(mat)
     assert names0 <= names and names - names0 == {"Loom Fallback"}, (names0, names)
     assert mat.node_tree.nodes["My Value"].outputs[0].default_value == 0.25
-    img = render(args.out, "missing")
-    means = [img.channel_mean(c) for c in range(3)]
-    print(f"loom-test: fallback render mean {means}")
-    assert all(math.isfinite(m) for m in means) and means[1] > 1e-3, means
-    # Not Blender's magenta for missing images: green is not far below red and blue.
-    assert means[1] > 0.5 * min(means[0], means[2]), means
-    # The fallback has the fabric's colour (plain's default yarn), not a fixed grey.
-    rgb = list(mat["loom_fallback_rgb"])
-    fb = mat.node_tree.nodes["Loom Fallback"].inputs["Base Color"].default_value
-    assert all(abs(fb[c] - rgb[c]) < 1e-6 for c in range(3)), (list(fb), rgb)
+    check_panel(mat, problem)
+    # The fallback has the fabric's colour (plain's default yarn), not a fixed grey, and is not
+    # Blender's magenta for missing images (green not far below red and blue).
+    fallback = check_fallback_render(args.out, "missing", mat)
     bpy.ops.wm.save_mainfile()  # saved with the fallback in place
 
     # 2. The atlas is back: the next load links the Loom node again, as built.
@@ -140,6 +163,11 @@ def main():
     print(f"loom-test: stale atlas: {mat.loom.atlas_problem}")
     assert mat.loom.atlas_problem.startswith("stale:"), mat.loom.atlas_problem
     assert output_source(mat) == "Loom Fallback"
+    check_panel(mat, mat.loom.atlas_problem)
+    # The same fallback as for a missing atlas (same scene, samples and seed).
+    stale = check_fallback_render(args.out, "stale", mat)
+    for c in range(3):
+        assert abs(stale[c] - fallback[c]) <= 1e-4 * abs(fallback[c]) + 1e-6, (stale, fallback)
 
     # 4. A texture file gone, and a manifest that is not JSON.
     manifest["spec_sha256"] = mat.node_tree.nodes["Loom Surface"].node_tree["loom_spec_sha256"]
@@ -150,12 +178,17 @@ def main():
     mat = reopen(blend)
     assert mat.loom.atlas_problem.startswith("missing:") and victim in mat.loom.atlas_problem, \
         mat.loom.atlas_problem
+    check_panel(mat, mat.loom.atlas_problem)
     with open(path, "w", encoding="utf-8") as f:
         f.write("{ not json")
     mat = reopen(blend)
     assert mat.loom.atlas_problem.startswith("unreadable:"), mat.loom.atlas_problem
+    assert output_source(mat) == "Loom Fallback"
+    check_panel(mat, mat.loom.atlas_problem)
+    check_fallback_render(args.out, "unreadable", mat)
     names, _ = tree_of(mat)
     assert names0 <= names and len(names) == len(names0) + 1, (names0, names)
+    assert mat.node_tree.nodes["My Value"].outputs[0].default_value == 0.25
 
 
 lt.run(main)

@@ -1,17 +1,16 @@
 // Atlas contract: bake, validate, reject broken atlases, reuse, CLI behaviour, evaluators.
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
 #include <random>
 #include <sstream>
-#include <thread>
 
 #include "loom/atlas.h"
 #include "test_util.h"
@@ -269,67 +268,74 @@ TEST(AtlasCli, ConcurrentBakesOfOneSpecLeaveOneValidAtlas) {
 }
 
 TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
-  // SIGKILL (no clean-up possible) at moments spread over a bake: first into an empty place,
-  // then re-baking over an existing atlas. The place holds either a complete, valid atlas (the
-  // old or the new one) or nothing, never a half one; the next bake sweeps the dead bakes'
-  // temporaries.
+  // SIGKILL (no clean-up possible) right after each progress line a bake prints: after every
+  // stage and every texture written, wherever this machine's speed puts them. First into an
+  // empty place, then re-baking over an existing atlas. The place holds either a complete, valid
+  // atlas (the old or the new one) or nothing, never a half one; the next bake sweeps the dead
+  // bakes' temporaries.
   const auto d = scratch("killed.atlas");
   const std::string prefix = ".killed.atlas.tmp-";
-  auto spawn = [](const std::string& quality, const fs::path& out) {
-    pid_t pid = fork();
-    if (pid == 0) {
-      FILE* null = std::fopen("/dev/null", "w");
-      dup2(fileno(null), 1);
-      dup2(fileno(null), 2);
-      execl(LOOM_BAKE_EXE, LOOM_BAKE_EXE, "bake", "plain", "--quality", quality.c_str(),
-            "--force", "--progress=none", "-o", out.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    return pid;
-  };
   auto temporaries = [&] {
     int n = 0;
     for (auto& e : fs::directory_iterator(d.parent_path()))
       n += e.path().filename().string().rfind(prefix, 0) == 0;
     return n;
   };
-  using clock = std::chrono::steady_clock;
-  // How long a whole bake takes on this machine (and this build).
-  const auto t0 = clock::now();
-  int status = 0;
-  waitpid(spawn("preview", scratch("timing.atlas")), &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
-  const auto whole = clock::now() - t0;
-  // Kill the bake at `fraction` of its run after its temporary appears; true if it was killed.
-  auto bake_and_kill = [&](const std::string& quality, double fraction) {
-    const pid_t pid = spawn(quality, d);
+  // Bakes `quality` into d and kills it after its `lines`-th progress line (0: lets it finish).
+  // Returns 1 if it was killed, 0 if it ended first (exit status in *exit_code).
+  auto bake = [&](const std::string& quality, int lines, int* exit_code = nullptr) {
+    int fds[2];
+    if (pipe(fds) != 0) return -1;
+    const pid_t pid = fork();
+    if (pid == 0) {
+      close(fds[0]);
+      dup2(fds[1], 1);
+      const int null = open("/dev/null", O_WRONLY);
+      dup2(null, 2);
+      execl(LOOM_BAKE_EXE, LOOM_BAKE_EXE, "bake", "plain", "--quality", quality.c_str(),
+            "--force", "--progress=json", "-o", d.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    close(fds[1]);
+    int seen = 0;
+    bool killed = false;
+    char c;
+    while (read(fds[0], &c, 1) == 1)
+      if (c == '\n' && ++seen == lines) {
+        kill(pid, SIGKILL);
+        killed = true;
+        break;
+      }
+    close(fds[0]);
     int st = 0;
-    while (temporaries() == 0 && waitpid(pid, &st, WNOHANG) == 0)
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    if (waitpid(pid, &st, WNOHANG) != 0) return false;
-    std::this_thread::sleep_for(std::chrono::duration_cast<clock::duration>(whole * fraction));
-    kill(pid, SIGKILL);
     waitpid(pid, &st, 0);
-    return WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL;
+    if (exit_code) *exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return killed && WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL ? 1 : 0;
   };
-  ASSERT_TRUE(bake_and_kill("preview", 0.3)) << "the first bake ended before it could be killed";
+  // Into an empty place, killed once a texture is in its temporary.
+  ASSERT_EQ(bake("preview", 8), 1) << "the first bake ended before it could be killed";
   EXPECT_FALSE(fs::exists(d)) << "a killed first bake published an atlas";
   EXPECT_EQ(temporaries(), 1) << "the killed bake's temporary";
-  waitpid(spawn("draft", d), &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  int code = -1;
+  ASSERT_EQ(bake("draft", 0, &code), 0);
+  ASSERT_EQ(code, 0);
   EXPECT_TRUE(loom::validate_atlas(d).empty());
   EXPECT_EQ(temporaries(), 0) << "the dead bake's temporary was not swept";
+  // Over the draft atlas: a preview bake killed after its 1st, 2nd, ... line until one ends.
   int killed = 0;
-  for (int k = 0; k < 8; ++k) {
-    killed += bake_and_kill("preview", (k + 0.5) / 8.0);
+  for (int n = 1; n <= 64; ++n) {
+    const int k = bake("preview", n);
+    ASSERT_GE(k, 0);
     json m;
     const auto errors = loom::validate_atlas(d, &m);
-    ASSERT_TRUE(errors.empty()) << "after a kill at " << (k + 0.5) / 8.0 << " of a bake: "
+    ASSERT_TRUE(errors.empty()) << "after a kill at progress line " << n << ": "
                                 << ::testing::PrintToString(errors);
+    if (k == 0) break;
+    ++killed;
   }
-  EXPECT_GE(killed, 4) << "too few bakes were killed before they ended";
-  waitpid(spawn("draft", d), &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  EXPECT_GE(killed, 8) << "a preview bake prints fewer progress lines than expected";
+  ASSERT_EQ(bake("draft", 0, &code), 0);
+  ASSERT_EQ(code, 0);
   EXPECT_TRUE(loom::validate_atlas(d).empty());
   EXPECT_EQ(temporaries(), 0);
 }

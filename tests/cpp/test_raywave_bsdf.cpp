@@ -93,9 +93,9 @@ TEST(RaywaveShading, NodeLookupIsEqS7AndTintIsEqS11) {
   for (int i = 0; i < t.node_rows() * t.node_cols() * t.lobes; ++i)
     t.nodes.push_back({u(g) * 3 - 1.5, u(g) * 6 - 3, u(g) * 6 - 3, 1 + 500 * u(g), 1 + 500 * u(g),
                        u(g) * 4});
-  const int Mb = 4, Nb = 3, K = 3, L = 3;
-  for (int b = 0; b < Mb * Nb; ++b)
-    for (int k = 0; k < K; ++k)
+  const int rows = 5, cols = 4, K = 3, L = 3;
+  for (int k = 0; k < K; ++k)
+    for (int n = 0; n < rows * cols; ++n)
       for (int l = 0; l < L; ++l) t.scale.push_back(k == 0 ? 1.0 : u(g));
   const loom::Image nodes = loom::asg_nodes_image(t);
   const std::array<double, 3> sig = {5.0, 40.0, 250.0};  // inside, inside, beyond the grid
@@ -119,8 +119,8 @@ TEST(RaywaveShading, NodeLookupIsEqS7AndTintIsEqS11) {
       EXPECT_NEAR(a[3], q.mu1, 2e-3);
       EXPECT_NEAR(b[0], q.mu2, 2e-3);
       EXPECT_NEAR(b[1], q.c, 1e-4);
-      // The per-block tint times c is S.12's amplitude at each channel's sigma.
-      sh::asg_tint_uv(sh::asg_block_index(fi, 9), sh::asg_block_index(fj, 7), l, L, Mb, Nb, s, tv);
+      // The tint's bilinear look-up times c is S.12's amplitude at each channel's sigma.
+      sh::asg_tint_uv(fi, fj, l, L, rows, cols, s, tv);
       const auto tc = texture(tint, s, tv);
       for (int c = 0; c < 3; ++c) {
         const auto wc = loom::asg_table_lobes(t, th, h, sig[size_t(c)]);
@@ -459,19 +459,21 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
     EXPECT_GT(diff, 1e-4);
   }
   // The tint texels are S.11 at each yarn's per-channel absorption: the ratio of the fitted
-  // amplitudes at that sigma and at sigma = 0, at a block's centre (asg_fit's own interpolation).
+  // amplitudes at that sigma and at sigma = 0, at each corner node (asg_fit's own evaluation).
   for (int y = 0; y < 2; ++y) {
     const auto& t = d.yarn[y].high;
-    const int Mb = int(t.theta_i.size() / 2), Nb = int(t.h.size() / 2);
-    for (int bm = 0; bm < Mb; ++bm)
-      for (int bn = 0; bn < Nb; ++bn) {
-        const double th = t.theta_i[size_t(2 * bm + 1)], h = t.h[size_t(2 * bn + 1)];
+    const int rows = t.node_rows(), cols = t.node_cols();
+    ASSERT_EQ(d.tint[y]->width, t.lobes * cols);
+    ASSERT_EQ(d.tint[y]->height, rows);
+    for (int i = 0; i < rows; ++i)
+      for (int j = 0; j < cols; ++j) {
+        const double th = t.theta_i[size_t(2 * i)], h = t.h[size_t(2 * j)];
         const auto base = loom::asg_table_lobes(t, th, h, 0.0);
         for (int c = 0; c < 3; ++c) {
           const auto lobes = loom::asg_table_lobes(t, th, h, d.sigma_rgb[y][size_t(c)]);
           for (int l = 0; l < t.lobes; ++l) {
             if (base[size_t(l)].c < 1e-6) continue;
-            EXPECT_NEAR(d.tint[y]->px(l * Nb + bn, bm)[c], lobes[size_t(l)].c / base[size_t(l)].c,
+            EXPECT_NEAR(d.tint[y]->px(l * cols + j, i)[c], lobes[size_t(l)].c / base[size_t(l)].c,
                         1e-5);
           }
         }

@@ -8,8 +8,9 @@
 //                     (mu2, c, 0, 0) at column (L + l) (N' + 1) + j (asg_node_column in
 //                     osl/include/loom/raywave_lobes.h), so that a bilinear look-up between
 //                     nodes is Eq. S.7. Angles in radians, phi unwrapped (interpolate as stored).
-//   ply_high_scale_<yarn>  scale-downs s_{l,k} (Eq. S.9): one channel, column bn L + l, row
-//                     bm K + k, per fitting block (bm, bn) and absorption level k.
+//   ply_high_scale_<yarn>  scale-downs s_{l,k} (Eq. S.9): one channel, column j L + l, row
+//                     i K + k, per corner node (i, j) and absorption level k (asg_fit.h: Loom
+//                     keeps them at the nodes, not per block, so they interpolate continuously).
 //   ply_refl_<yarn>   corner nodes of the f_refl fit, the ply_high layout with its own L.
 //   ply_high_residual_<yarn>, ply_refl_residual_<yarn>  the energy residual (asg_residual.h):
 //                     one channel, column side N + n (side 0 backward, 1 forward), row m K + k,
@@ -30,7 +31,7 @@
 namespace loom {
 
 /// The manifest's raywave.yarns.<yarn>.node_layout of the layout above.
-inline constexpr const char* kAsgNodeLayout = "lobe-major";
+inline constexpr const char* kAsgNodeLayout = "lobe-major/node-scales";
 
 struct PlyTables {
   AsgTable high, refl;

@@ -34,7 +34,9 @@
 namespace loom {
 
 /// Render tables baked at the yarn colours (layouts in the shared headers).
-/// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high per block at sigma_rgb.
+/// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high at sigma_rgb, per corner node in the
+/// nodes' lobe-major layout (column l (N' + 1) + j, row i: asg_tint_uv), so that a bilinear
+/// look-up between nodes interpolates it as S.7 does the lobes.
 Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb);
 /// ply_residual_<yarn>: RGB energy residual of f_refl + f_high (asg_residual.h) per slice and
 /// side at sigma_rgb (layout: raywave_residual_uv in raywave_lobes.h).

@@ -19,8 +19,10 @@
 // node, lobe-major columns ((part L + lobe) (N' + 1) + j) so that a bilinear texture look-up at
 // fractional node coordinates is exactly Eq. S.7 (texel centres sit on the nodes; the look-up stays
 // between the first and the last centre of its lobe's columns, so no wrap mode is needed). The
-// per-block amplitude scale at the yarn's absorption (Eq. S.10, S.11, one value per colour channel)
-// is a separate, colour-dependent image (`ply_tint_<yarn>`) read at the block's texel centre.
+// amplitude scale at the yarn's absorption (Eq. S.10, S.11, one value per colour channel) is a
+// separate, colour-dependent image (`ply_tint_<yarn>`) in the same lobe-major layout with one
+// texel per node, read bilinearly like the nodes (Loom keeps the scale-downs at the nodes, not per
+// block: asg_fit.h).
 //
 // Closures (choices, measured by the closure emulator, loom-bake report):
 //   * a lobe whose centre z lies on the viewer's side of the cloth: an anisotropic Beckmann
@@ -109,12 +111,6 @@ LOOM_FN float asg_node_coord(float x, float lo, float hi, int n) {
   return 0.5 * u;
 }
 
-/// The block (S.3) that holds fractional node coordinate c, on a grid of n samples.
-LOOM_FN int asg_block_index(float c, int n) {
-  int b = (int)floor(c);
-  return max(0, min(b, (n - 1) / 2 - 1));
-}
-
 /// Column of (part, lobe, h node j) in a node image of `cols` = N' + 1 node columns.
 LOOM_FN int asg_node_column(int part, int lobe, int j, int cols, int lobes) {
   return (part * lobes + lobe) * cols + j;
@@ -130,12 +126,16 @@ LOOM_FN void asg_node_uv(float fi, float fj, int part, int lobe, int lobes, int 
   tv = (i + 0.5) / rows;
 }
 
-/// Image coordinates of block (bm, bn)'s amplitude scale of lobe `lobe` in a ply_tint image of
-/// lobes nb columns (column lobe nb + bn) and mb rows.
-LOOM_FN void asg_tint_uv(int bm, int bn, int lobe, int lobes, int mb, int nb, LOOM_OUT(float) s,
-                         LOOM_OUT(float) tv) {
-  s = (lobe * nb + bn + 0.5) / (lobes * nb);
-  tv = (bm + 0.5) / mb;
+/// Image coordinates of the bilinear look-up that returns lobe `lobe`'s amplitude scale (Eq. S.11
+/// at the yarn's absorption) at fractional node coordinates (fi, fj) in a ply_tint image of
+/// lobes cols columns (column lobe cols + j) and rows rows: the scales sit on the nodes, as the
+/// lobes do, and interpolate with S.7's weights, so they are continuous across block borders.
+LOOM_FN void asg_tint_uv(float fi, float fj, int lobe, int lobes, int rows, int cols,
+                         LOOM_OUT(float) s, LOOM_OUT(float) tv) {
+  float i = clamp(fi, 0.0, rows - 1.0);
+  float j = clamp(fj, 0.0, cols - 1.0);
+  s = (lobe * cols + j + 0.5) / (lobes * cols);
+  tv = (i + 0.5) / rows;
 }
 
 /// The reflection closure of a lobe (centre z, axes x, y, bandwidths mu1, mu2; tangent frame) seen
