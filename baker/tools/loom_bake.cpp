@@ -14,6 +14,7 @@
 #include "loom/absorption.h"
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
+#include "loom/cli_values.h"
 #include "loom/evaluator.h"
 #include "loom/fiber_lookup.h"
 #include "loom/fiber_region.h"
@@ -30,26 +31,6 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 
 namespace {
-
-bool parse_vec(const std::string& s, int n, std::vector<double>& out) {
-  out.clear();
-  size_t pos = 0;
-  while (pos <= s.size()) {
-    size_t end = s.find(',', pos);
-    std::string tok = s.substr(pos, end == std::string::npos ? std::string::npos : end - pos);
-    try {
-      size_t used = 0;
-      double v = std::stod(tok, &used);
-      if (used != tok.size() || !std::isfinite(v)) return false;
-      out.push_back(v);
-    } catch (...) {
-      return false;
-    }
-    if (end == std::string::npos) break;
-    pos = end + 1;
-  }
-  return int(out.size()) == n;
-}
 
 /// Index of the grid value nearest to x (the first of equals).
 size_t nearest_node(const std::vector<double>& g, double x) {
@@ -101,13 +82,17 @@ NearestSlice simulate_nearest_slice(const loom::Atlas& atlas, const loom::AsgTab
 }
 
 /// CLI::Range for real numbers, but NaN and infinities are rejected too (every comparison with
-/// NaN is false, so CLI::Range lets it through).
+/// NaN is false, so CLI::Range lets it through); the number syntax of loom/cli_values.h. The
+/// accepted value is handed on in its shortest round-trip form, so that CLI11's own conversion
+/// reads exactly the number checked.
 CLI::Validator finite_range(double lo, double hi) {
   return CLI::Validator(
       [lo, hi](std::string& s) -> std::string {
-        std::vector<double> v;
-        if (!parse_vec(s, 1, v)) return fmt::format("\"{}\" is not a finite number", s);
-        if (v[0] < lo || v[0] > hi) return fmt::format("{} is not in [{}, {}]", s, lo, hi);
+        try {
+          s = fmt::format("{}", loom::parse_cli_number_in("", s, lo, hi));
+        } catch (const loom::CliValueError& e) {
+          return e.what();
+        }
         return "";
       },
       fmt::format("in [{}, {}]", lo, hi));
@@ -530,11 +515,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*albedo) {
-      std::vector<double> wo;
-      if (!parse_vec(albedo_wo_s, 3, wo) || wo[0] * wo[0] + wo[1] * wo[1] + wo[2] * wo[2] == 0) {
-        std::cerr << "error: --wo: expected X,Y,Z (three finite numbers, not all zero)\n";
-        return 2;
-      }
+      const auto wo = loom::parse_cli_direction("--wo", albedo_wo_s);
       auto atlas = loom::load_atlas(albedo_atlas);
       if (atlas.manifest.value("tier", "") != "raywave") {
         std::cerr << "error: --atlas: eval albedo needs a ray-wave atlas (this one is \""
@@ -558,25 +539,10 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*asg) {
-      std::vector<double> q, v;
-      if (!parse_vec(asg_lobe_s, 6, q)) {
-        std::cerr << "error: --lobe: expected THETA_Z,PHI_Z,PHI_XY,MU1,MU2,C (six finite numbers)\n";
-        return 2;
-      }
-      if (q[3] < 0 || q[4] < 0 || q[5] < 0) {
-        std::cerr << "error: --lobe: MU1, MU2 and C must be >= 0\n";
-        return 2;
-      }
-      if (!parse_vec(asg_v_s, 3, v)) {
-        std::cerr << "error: --v: expected X,Y,Z (three finite numbers, not all zero)\n";
-        return 2;
-      }
+      const auto q = loom::parse_cli_asg_lobe("--lobe", asg_lobe_s);
+      const auto v = loom::parse_cli_direction("--v", asg_v_s);
       namespace sh = loom::shading;
       sh::vec3 dir = sh::normalize(sh::vec3(float(v[0]), float(v[1]), float(v[2])));
-      if (sh::length(dir) == 0) {
-        std::cerr << "error: --v: the direction must not be the zero vector\n";
-        return 2;
-      }
       float val = sh::asg_eval(float(q[0]), float(q[1]), float(q[2]), float(q[3]), float(q[4]),
                                float(q[5]), dir);
       float integral = sh::asg_integral(float(q[3]), float(q[4]), float(q[5]));
@@ -584,42 +550,9 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*diffraction) {
-      std::vector<double> A;
-      {
-        // Like parse_vec, but +-inf are allowed (an unbounded side).
-        std::string t = dif_aperture_s;
-        size_t pos = 0;
-        bool good = true;
-        while (good) {
-          const size_t end = t.find(',', pos);
-          const std::string tok = t.substr(pos, end == std::string::npos ? end : end - pos);
-          if (tok == "inf" || tok == "+inf") {
-            A.push_back(INFINITY);
-          } else if (tok == "-inf") {
-            A.push_back(-INFINITY);
-          } else {
-            std::vector<double> one;
-            good = parse_vec(tok, 1, one);
-            if (good) A.push_back(one[0]);
-          }
-          if (end == std::string::npos) break;
-          pos = end + 1;
-        }
-        if (!good || A.size() != 4 || !(A[0] <= A[1]) || !(A[2] <= A[3])) {
-          std::cerr << "error: --aperture: expected XW,XE,YS,YN in um with XW <= XE and YS <= YN "
-                       "(numbers, or inf / -inf for an unbounded side)\n";
-          return 2;
-        }
-      }
-      std::vector<double> wi, wo;
-      for (auto [name, str, out] : {std::tuple{"--wi", &dif_wi_s, &wi}, {"--wo", &dif_wo_s, &wo}}) {
-        if (!parse_vec(*str, 3, *out) || std::hypot((*out)[0], (*out)[1], (*out)[2]) == 0) {
-          std::cerr << "error: " << name << ": expected X,Y,Z (three finite numbers, not all zero)\n";
-          return 2;
-        }
-        const double n = std::hypot((*out)[0], (*out)[1], (*out)[2]);
-        for (double& c : *out) c /= n;
-      }
+      const auto A = loom::parse_cli_aperture("--aperture", dif_aperture_s);
+      const auto wi = loom::parse_cli_direction("--wi", dif_wi_s);
+      const auto wo = loom::parse_cli_direction("--wo", dif_wo_s);
       const loom::Aperture ap{A[0], A[1], A[2], A[3]};
       const double lambda_um = dif_lambda * 1e-3;
       const std::array<double, 3> xi{wi[0], wi[1], wi[2]}, xo{wo[0], wo[1], wo[2]};
@@ -637,12 +570,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*colour) {
-      std::vector<double> rgb;
-      if (!parse_vec(colour_rgb_s, 3, rgb) || *std::min_element(rgb.begin(), rgb.end()) < 0 ||
-          *std::max_element(rgb.begin(), rgb.end()) > 1) {
-        std::cerr << "error: --rgb: expected R,G,B, three numbers in [0, 1] (scene-linear)\n";
-        return 2;
-      }
+      const auto rgb = loom::parse_cli_rgb01("--rgb", colour_rgb_s);
       auto atlas = loom::load_atlas(colour_atlas);
       const json& m = atlas.manifest;
       const json y = m.contains("raywave") ? m["raywave"]["yarns"].value(colour_yarn, json())
@@ -842,17 +770,8 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*raywave) {
-      std::vector<double> wo;
-      if (!parse_vec(rw_wo_s, 3, wo)) {
-        std::cerr << "error: --wo: expected X,Y,Z (three finite numbers, not all zero)\n";
-        return 2;
-      }
-      double n = std::sqrt(wo[0] * wo[0] + wo[1] * wo[1] + wo[2] * wo[2]);
-      if (!(n > 0)) {
-        std::cerr << "error: --wo: the direction must not be the zero vector\n";
-        return 2;
-      }
-      loom::Vec3d w{wo[0] / n, wo[1] / n, wo[2] / n};
+      const auto wo = loom::parse_cli_direction("--wo", rw_wo_s);
+      const loom::Vec3d w{wo[0], wo[1], wo[2]};
       auto atlas = loom::load_atlas(rw_atlas);
       auto t = loom::load_ply_tables(atlas, rw_yarn);
       const double th = rw_theta * M_PI / 180;
@@ -882,11 +801,7 @@ int main(int argc, char** argv) {
     if (*fibers_cmd) {
       auto res = loom::load_spec(fr_spec);
       if (!res.ok()) return report_spec_errors(fr_spec, res.errors);
-      std::vector<double> rv;
-      if (!parse_vec(fr_region, 4, rv)) {
-        std::cerr << "error: --region: expected X0,Y0,X1,Y1 (four finite numbers, um)\n";
-        return 2;
-      }
+      const auto rv = loom::parse_cli_region("--region", fr_region);
       loom::FiberRegion reg{rv[0], rv[1], rv[2], rv[3]};
       auto t0 = std::chrono::steady_clock::now();
       loom::FiberCurves curves;
@@ -1012,21 +927,18 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*bsdf) {
-      std::vector<double> uv, wi, wo;
-      if (!average && !parse_vec(uv_s, 2, uv)) {
-        std::cerr << "error: --uv: expected U,V (two finite numbers), or give --average\n";
-        return 2;
+      std::array<double, 2> uv{};
+      if (!average) {
+        if (uv_s.empty()) {
+          std::cerr << "error: --uv: expected U,V (two finite numbers), or give --average\n";
+          return 2;
+        }
+        uv = loom::parse_cli_uv("--uv", uv_s);
       }
-      if (!parse_vec(wi_s, 3, wi) || !parse_vec(wo_s, 3, wo)) {
-        std::cerr << "error: --wi/--wo: expected X,Y,Z (three finite numbers, not all zero)\n";
-        return 2;
-      }
+      const auto wi = loom::parse_cli_direction("--wi", wi_s);
+      const auto wo = loom::parse_cli_direction("--wo", wo_s);
       loom::shading::vec3 vi{float(wi[0]), float(wi[1]), float(wi[2])};
       loom::shading::vec3 vo{float(wo[0]), float(wo[1]), float(wo[2])};
-      if (loom::shading::length(vi) == 0 || loom::shading::length(vo) == 0) {
-        std::cerr << "error: --wi/--wo: a direction must not be the zero vector\n";
-        return 2;
-      }
       vi = loom::shading::normalize(vi);
       vo = loom::shading::normalize(vo);
       auto atlas = loom::load_atlas(atlas_dir);
@@ -1063,6 +975,10 @@ int main(int argc, char** argv) {
       std::cout << out.dump() << std::endl;
       return 0;
     }
+  } catch (const loom::CliValueError& ex) {
+    // A bad value on the command line (loom/cli_values.h): like every other bad input.
+    std::cerr << "error: " << ex.what() << "\n";
+    return 2;
   } catch (const std::exception& ex) {
     std::cerr << "loom-bake: " << ex.what() << "\n";
     return 1;
