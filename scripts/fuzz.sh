@@ -1,20 +1,23 @@
 #!/usr/bin/env bash
 # Fuzz Loom's parsers with libFuzzer (clang, AddressSanitizer + UndefinedBehaviorSanitizer):
 # the fabric spec parser (tests/fuzz/fuzz_spec.cpp), an atlas's manifest with everything read
-# from it (tests/fuzz/fuzz_manifest.cpp) and loom-bake's command-line values
-# (tests/fuzz/fuzz_cli_values.cpp).
+# from it (tests/fuzz/fuzz_manifest.cpp), loom-bake's command-line values
+# (tests/fuzz/fuzz_cli_values.cpp) and an atlas's texture files read through OpenImageIO
+# (tests/fuzz/fuzz_texture.cpp).
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET [TARGET...]]
-#     SECONDS_PER_TARGET: default 600; scripts/test.sh runs 45
-#     TARGET: spec, manifest, cli_values (default: all three)
-# Starts from the corpora in tests/fuzz/corpus (plus the built-in presets and a freshly baked
-# manifest) and grows them in out/fuzz/<target>; a crash, a sanitizer report or a broken
-# property leaves its input in out/fuzz/<target>-crash-* and fails the script. Keep each finding
-# as a test: copy the input into tests/fuzz/corpus/<target>/ (the bounded run replays it).
+#     SECONDS_PER_TARGET: default 600; scripts/test.sh runs 45 (4 targets: 3 minutes in all)
+#     TARGET: spec, manifest, cli_values, texture (default: all four)
+# Starts from the corpora in tests/fuzz/corpus (plus the built-in presets, a freshly baked
+# manifest and textures freshly written by the baker's writer) and grows them in
+# out/fuzz/<target>; a crash, a sanitizer report or a broken property leaves its input in
+# out/fuzz/<target>-crash-* and fails the script. Keep each finding as a test: copy the input
+# into tests/fuzz/corpus/<target>/ (the bounded run replays it, and so do the unit tests for the
+# manifest and texture corpora: tests/cpp/test_fuzz_corpus.cpp).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-600}
 shift || true
-all_targets=(spec manifest cli_values)  # as in CMakeLists.txt's LOOM_FUZZ block
+all_targets=(spec manifest cli_values texture)  # as in CMakeLists.txt's LOOM_FUZZ block
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${all_targets[@]}")
 for t in "${targets[@]}"; do
@@ -40,7 +43,9 @@ cp "$here"/tests/fuzz/corpus/spec/* "$here"/presets/*.json "$here"/presets/sampl
   "$out/spec/"
 cp "$here"/tests/fuzz/corpus/manifest/* "$out/manifest/"
 cp "$here"/tests/fuzz/corpus/cli_values/* "$out/cli_values/"
+cp "$here"/tests/fuzz/corpus/texture/* "$out/texture/"
 export LOOM_FUZZ_SEED_OUT=$out/manifest/baked.json
+export LOOM_FUZZ_SEED_DIR=$out/texture
 
 status=0
 for target in "${targets[@]}"; do

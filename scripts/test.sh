@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Sets up, builds and runs every Loom test: the C++ unit tests (also under AddressSanitizer and
-# UndefinedBehaviorSanitizer), a bounded fuzzing run of the parsers (scripts/fuzz.sh, 45 s a
-# target), the Blender tests (headless, in the Blender that scripts/blender.sh finds or
-# provisions) and the OSL compile check (skipped with a message when oslc is absent).
+# UndefinedBehaviorSanitizer), a bounded fuzzing run of the parsers (scripts/fuzz.sh, 45 s for
+# each of its four targets), the Blender tests (headless, in the Blender that scripts/blender.sh
+# finds or provisions) and the OSL compile check (skipped with a message when oslc is absent).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 

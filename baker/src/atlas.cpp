@@ -82,31 +82,114 @@ void write_map(const Image& img, const fs::path& dir, const std::string& name, b
     throw std::runtime_error(fmt::format("make_texture {}: {}", tx.string(), OIIO::geterror()));
 }
 
-bool read_exr(const fs::path& p, Image& out, std::string& err) {
-  auto in = ImageInput::open(p.string());
-  if (!in) {
-    err = OIIO::geterror();
-    return false;
+/// What an OpenEXR node file must be before OpenEXR reads it: the baker's kind of file, checked
+/// from its header's bytes. OpenEXR allocates what a header declares before it reads it (an
+/// attribute's size, a preview's pixels, the chunk table of a data window), so a few corrupted
+/// bytes could make it allocate gigabytes (fuzz_texture found a 41-byte file claiming a 450 MB
+/// string attribute: 20 s and 700 MB). The choices: one part, scan lines (the baker writes no
+/// tiled, deep or multi-part EXR), a header in the first 64 KiB whose every attribute fits in the
+/// file, no preview image or ID manifest (their sizes are stored inside them), a data window
+/// within kMaxMapSide x 2 kMaxMapSide, and a lossless compression (none, RLE, ZIPS, ZIP, PIZ).
+/// Returns "" or the reason.
+std::string exr_header_problem(const fs::path& p) {
+  constexpr size_t kMaxHeader = 64 * 1024;
+  std::error_code ec;
+  const uintmax_t file_size = fs::file_size(p, ec);
+  if (ec) return "cannot be read: " + ec.message();
+  std::ifstream in(p, std::ios::binary);
+  std::string b(size_t(std::min<uintmax_t>(file_size, kMaxHeader)), '\0');
+  in.read(b.data(), std::streamsize(b.size()));
+  if (!in) return "cannot be read";
+  const auto u8 = [&](size_t i) { return static_cast<unsigned char>(b[i]); };
+  const auto i32 = [&](size_t i) {
+    return int32_t(uint32_t(u8(i)) | uint32_t(u8(i + 1)) << 8 | uint32_t(u8(i + 2)) << 16 |
+                   uint32_t(u8(i + 3)) << 24);
+  };
+  if (b.size() < 8 || u8(0) != 0x76 || u8(1) != 0x2f || u8(2) != 0x31 || u8(3) != 0x01)
+    return "not an OpenEXR file (no magic number)";
+  const uint32_t version = uint32_t(i32(4));
+  if ((version & 0xff) != 2) return fmt::format("OpenEXR version {} (not 2)", version & 0xff);
+  if (version & ~uint32_t(0x4ff))
+    return "a tiled, deep or multi-part OpenEXR file (the baker writes single-part scan lines)";
+  // A C string of at most 255 bytes at i: its end, or npos.
+  const auto cstr_end = [&](size_t i) {
+    const size_t e = b.find('\0', i);
+    return e == std::string::npos || e - i > 255 ? std::string::npos : e;
+  };
+  bool window = false;
+  size_t i = 8;
+  for (;;) {
+    if (i >= b.size()) return "the header does not end within its first 64 KiB";
+    if (b[i] == '\0') break;  // end of the header
+    const size_t name_end = cstr_end(i);
+    const size_t type_end = name_end == std::string::npos ? name_end : cstr_end(name_end + 1);
+    if (type_end == std::string::npos || type_end + 4 >= b.size())
+      return "a header attribute is cut off or has an over-long name";
+    const std::string name = b.substr(i, name_end - i);
+    const std::string type = b.substr(name_end + 1, type_end - name_end - 1);
+    const int32_t size = i32(type_end + 1);
+    const size_t value = type_end + 5;
+    if (size < 0 || uintmax_t(size) > file_size - value || value + size_t(size) > b.size())
+      return fmt::format("header attribute \"{}\" declares {} bytes, more than the header "
+                         "holds",
+                         name, size);
+    if (type == "preview" || type == "idmanifest")
+      return fmt::format("header attribute \"{}\" of type {} (the baker writes none)", name, type);
+    if (name == "dataWindow") {
+      if (type != "box2i" || size != 16) return "dataWindow is not a box2i";
+      const int64_t w = int64_t(i32(value + 8)) - i32(value) + 1;
+      const int64_t h = int64_t(i32(value + 12)) - i32(value + 4) + 1;
+      if (w < 1 || h < 1 || w > kMaxMapSide || h > 2 * kMaxMapSide)
+        return fmt::format("data window {} x {} (allowed: 1 to {} x 1 to {})", w, h,
+                           kMaxMapSide, 2 * kMaxMapSide);
+      window = true;
+    }
+    if (name == "compression" && (type != "compression" || size != 1 || u8(value) > 4))
+      return "compression is not a lossless one (none, RLE, ZIPS, ZIP, PIZ)";
+    if (name == "tiles") return "a tiled OpenEXR file (the baker writes scan lines)";
+    i = value + size_t(size);
+  }
+  if (!window) return "the header has no dataWindow";
+  return "";
+}
+
+/// The one OpenImageIO reader for a file of the atlas: OpenEXR for the node files (".exr"),
+/// TIFF for maketx's tiled textures (".tx"), whatever the bytes say. Choice: ImageInput::open
+/// would try every format OIIO knows when the named one fails, so a corrupted file could reach
+/// any of its readers; the atlas only ever holds these two.
+std::unique_ptr<ImageInput> open_atlas_file(const fs::path& p) {
+  const bool exr = p.extension() == ".exr";
+  if (exr)
+    if (const std::string why = exr_header_problem(p); !why.empty())
+      throw std::runtime_error(fmt::format("{}: not an OpenEXR file the baker writes: {}",
+                                           p.string(), why));
+  auto in = ImageInput::create(exr ? "openexr" : "tiff");
+  if (!in)
+    throw std::runtime_error(fmt::format("{}: OpenImageIO has no {} reader: {}", p.string(),
+                                         exr ? "OpenEXR" : "TIFF", OIIO::geterror()));
+  ImageSpec spec;
+  bool ok = false;
+  try {
+    ok = in->open(p.string(), spec);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(fmt::format("{}: cannot be read as {}: {}", p.string(),
+                                         exr ? "OpenEXR" : "TIFF", e.what()));
+  }
+  if (!ok) {
+    std::string err = in->geterror();
+    if (err.empty()) err = OIIO::geterror();
+    throw std::runtime_error(fmt::format("{}: cannot be read as {}: {}", p.string(),
+                                         exr ? "OpenEXR" : "TIFF",
+                                         err.empty() ? "no reason given" : err));
   }
   const ImageSpec& s = in->spec();
-  if (s.width <= 0 || s.height <= 0 || s.width > kMaxMapSide || s.height > 2 * kMaxMapSide ||
-      s.nchannels < 1 || s.nchannels > 4) {
-    err = fmt::format("unexpected size {}x{}x{}", s.width, s.height, s.nchannels);
-    return false;
-  }
-  Image img(s.width, s.height, s.nchannels);
-  std::vector<float> tmp(img.data.size());
-  if (!in->read_image(0, 0, 0, s.nchannels, TypeDesc::FLOAT, tmp.data())) {
-    err = in->geterror();
-    return false;
-  }
-  for (int iy = 0; iy < img.height; ++iy) {
-    int fy = img.height - 1 - iy;
-    std::copy_n(&tmp[size_t(fy) * img.width * img.channels], size_t(img.width) * img.channels,
-                img.px(0, iy));
-  }
-  out = std::move(img);
-  return true;
+  if (s.deep || s.depth != 1 || s.width <= 0 || s.height <= 0 || s.width > kMaxMapSide ||
+      s.height > 2 * kMaxMapSide || s.nchannels < 1 || s.nchannels > 4)
+    throw std::runtime_error(fmt::format(
+        "{}: a {}{}x{}x{} image, not what the baker writes (1 to 4 channels, at most {} x {})",
+        p.string(), s.deep ? "deep " : "", s.width, s.height, s.nchannels, kMaxMapSide,
+        2 * kMaxMapSide));
+  return in;
 }
 
 uint64_t dir_bytes(const fs::path& d) {
@@ -146,6 +229,14 @@ const char* const kSurfaceMaps[] = {"ply_frame",   "ply_normal",      "yarn_info
                                    "albedo_reflect", "albedo_transmit", "spec_params",
                                    "horizon_0",   "horizon_1",       "albedo_lut"};
 
+/// j[key] when j is an object holding a string there, else "" (for manifests not yet validated,
+/// whose fields may have any type).
+std::string string_field(const json& j, const char* key) {
+  if (!j.is_object()) return "";
+  const auto it = j.find(key);
+  return it != j.end() && it->is_string() ? it->get<std::string>() : "";
+}
+
 bool plain_filename(const std::string& f) {
   return !f.empty() && f.find('/') == std::string::npos && f.find('\\') == std::string::npos &&
          f != "." && f != ".." && f.find('\0') == std::string::npos;
@@ -173,9 +264,164 @@ std::string sha256_file(const fs::path& p) {
   return hex_digest(ctx);
 }
 
+Image read_atlas_image(const fs::path& p) {
+  auto in = open_atlas_file(p);
+  const ImageSpec& s = in->spec();
+  Image img(s.width, s.height, s.nchannels);
+  std::vector<float> tmp(img.data.size());
+  bool ok = false;
+  try {
+    ok = in->read_image(0, 0, 0, s.nchannels, TypeDesc::FLOAT, tmp.data());
+  } catch (const std::exception& e) {
+    throw std::runtime_error(fmt::format("{}: reading its pixels failed: {}", p.string(), e.what()));
+  }
+  if (!ok) {
+    std::string err = in->geterror();
+    throw std::runtime_error(fmt::format("{}: reading its pixels failed: {}", p.string(),
+                                         err.empty() ? "(no reason given)" : err));
+  }
+  for (int iy = 0; iy < img.height; ++iy) {
+    int fy = img.height - 1 - iy;
+    std::copy_n(&tmp[size_t(fy) * img.width * img.channels], size_t(img.width) * img.channels,
+                img.px(0, iy));
+  }
+  return img;
+}
+
+std::array<int, 3> atlas_image_header(const fs::path& p) {
+  auto in = open_atlas_file(p);
+  return {in->spec().width, in->spec().height, in->spec().nchannels};
+}
+
+void write_atlas_map(const Image& img, const fs::path& dir, const std::string& name, bool half,
+                     const char* wrap) {
+  write_map(img, dir, name, half, wrap, {});
+}
+
+namespace {
+
+/// The type and range checks of the manifest's fields that the deep readers (load_ply_tables,
+/// load_raywave, the shading tables) take as they are: `errors` gets one message naming the
+/// field for each problem.
+struct FieldChecks {
+  std::vector<std::string>& errors;
+
+  /// parent[key] if parent is an object holding it, else null.
+  static const json& at(const json& parent, const char* key) {
+    static const json null;
+    if (!parent.is_object()) return null;
+    const auto it = parent.find(key);
+    return it == parent.end() ? null : *it;
+  }
+  bool string(const json& parent, const char* key, const std::string& path, bool required) {
+    const json& v = at(parent, key);
+    if (v.is_string() || (v.is_null() && !required && !parent.contains(key))) return true;
+    errors.push_back(fmt::format("{}: expected a string{}", path, v.is_null() ? " (missing)" : ""));
+    return false;
+  }
+  bool integer(const json& parent, const char* key, const std::string& path, long long lo,
+               long long hi, bool required = true) {
+    const json& v = at(parent, key);
+    if (!required && !parent.contains(key)) return true;
+    if (v.is_number_integer() && v.get<long long>() >= lo && v.get<long long>() <= hi &&
+        !(v.is_number_unsigned() && v.get<unsigned long long>() > (unsigned long long)hi))
+      return true;
+    errors.push_back(fmt::format("{}: expected an integer in [{}, {}]{}", path, lo, hi,
+                                 v.is_null() ? " (missing)" : ", not " + v.dump()));
+    return false;
+  }
+  bool number(const json& parent, const char* key, const std::string& path, double lo, double hi,
+              bool required = true) {
+    const json& v = at(parent, key);
+    if (!required && !parent.contains(key)) return true;
+    if (v.is_number() && v.get<double>() >= lo && v.get<double>() <= hi) return true;
+    errors.push_back(fmt::format("{}: expected a number in [{}, {}]{}", path, lo, hi,
+                                 v.is_null() ? " (missing)" : ", not " + v.dump()));
+    return false;
+  }
+  /// An array of min_n to max_n numbers in [lo, hi], strictly increasing if `increasing`.
+  bool numbers(const json& parent, const char* key, const std::string& path, size_t min_n,
+               size_t max_n, double lo, double hi, bool increasing) {
+    const json& v = at(parent, key);
+    bool ok = v.is_array() && v.size() >= min_n && v.size() <= max_n;
+    for (size_t k = 0; ok && k < v.size(); ++k)
+      ok = v[k].is_number() && v[k].get<double>() >= lo && v[k].get<double>() <= hi &&
+           (!increasing || k == 0 || v[k].get<double>() > v[k - 1].get<double>());
+    if (ok) return true;
+    errors.push_back(fmt::format("{}: expected {} to {} numbers in [{}, {}]{}", path, min_n, max_n,
+                                 lo, hi, increasing ? ", increasing" : ""));
+    return false;
+  }
+};
+
+/// What load_ply_tables and load_raywave read besides the texture names (checked by the caller):
+/// their types, and for the integers the ranges that keep the readers' arithmetic in range.
+/// The readers check the values' meaning themselves (grids, lobe counts, curves, image sizes).
+void check_raywave_fields(const json& m, std::vector<std::string>& errors) {
+  FieldChecks c{errors};
+  const json& rw = FieldChecks::at(m, "raywave");
+  const json& repeat = FieldChecks::at(m, "repeat");
+  c.integer(repeat, "warp_yarns", "repeat.warp_yarns", 1, kMaxMapSide);
+  c.integer(repeat, "weft_yarns", "repeat.weft_yarns", 1, kMaxMapSide);
+  const json& yarns = FieldChecks::at(rw, "yarns");
+  for (const char* yarn : {"warp", "weft"}) {
+    const json& y = FieldChecks::at(yarns, yarn);
+    if (!y.is_object()) continue;  // reported by the caller
+    const std::string p = fmt::format("raywave.yarns.{}", yarn);
+    c.string(y, "yarn", p + ".yarn", false);
+    for (const char* which : {"high", "refl"})
+      c.number(FieldChecks::at(y, which), "nrmse", fmt::format("{}.{}.nrmse", p, which), 0, 1e30,
+               false);
+    const json& ab = FieldChecks::at(y, "absorption");
+    if (!ab.is_object()) {
+      errors.push_back(p + ".absorption: expected an object (the yarn's absorption)");
+      continue;
+    }
+    c.numbers(ab, "sigma_rgb_per_mm", p + ".absorption.sigma_rgb_per_mm", 3, 3, 0, 1e30, false);
+    const json& curve = FieldChecks::at(ab, "curve");
+    if (!curve.is_object())
+      errors.push_back(p + ".absorption.curve: expected an object");
+    else
+      c.integer(curve, "rays", p + ".absorption.curve.rays", 0, (1LL << 62), false);
+  }
+  const json& dl = FieldChecks::at(rw, "double_layer");
+  c.integer(dl, "theta_count", "raywave.double_layer.theta_count", 1, 2 * kMaxMapSide);
+  c.integer(dl, "phi_count", "raywave.double_layer.phi_count", 1, kMaxMapSide);
+  c.numbers(dl, "sigma_per_mm", "raywave.double_layer.sigma_per_mm", 1, 2 * kMaxMapSide, 0, 1e30,
+            true);
+  c.number(dl, "blend", "raywave.double_layer.blend", 0, 1, false);
+  c.string(FieldChecks::at(rw, "shading"), "sigma_interpolation",
+           "raywave.shading.sigma_interpolation", false);
+  const json& dif = FieldChecks::at(rw, "diffraction");
+  const json& dfiles = FieldChecks::at(dif, "files");
+  if (dfiles.is_object() && dfiles.contains("gap")) {
+    c.integer(dif, "tile_size", "raywave.diffraction.tile_size", 2, kMaxMapSide);
+    c.number(dif, "spot_s", "raywave.diffraction.spot_s", 0, 1e30);
+    c.numbers(dif, "gap_fraction", "raywave.diffraction.gap_fraction", 2, 2, 0, 1, false);
+    if (!dfiles.contains("gap_sampling"))
+      errors.push_back("raywave.diffraction.files.gap_sampling: missing (the gap table needs it)");
+  }
+  const json& nz = FieldChecks::at(rw, "noise");
+  const json& nfiles = FieldChecks::at(nz, "files");
+  if (nfiles.is_object() && (nfiles.contains("refl") || nfiles.contains("high"))) {
+    if (!nfiles.contains("refl") || !nfiles.contains("high"))
+      errors.push_back("raywave.noise.files: expected both \"refl\" and \"high\", or neither");
+    c.integer(nz, "levels", "raywave.noise.levels", 0, 64);
+    c.integer(nz, "instances", "raywave.noise.instances", 1, 2 * kMaxMapSide);
+    c.integer(nz, "theta_count", "raywave.noise.theta_count", 1, kMaxMapSide);
+  }
+}
+
+}  // namespace
+
 std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out) {
   std::vector<std::string> errors;
   fs::path mp = dir / "manifest.json";
+  std::error_code ec;
+  if (fs::is_symlink(fs::symlink_status(mp, ec)))
+    return {fmt::format("{}: is a symbolic link; an atlas's files must be regular files in its "
+                        "directory",
+                        mp.string())};
   std::ifstream in(mp);
   if (!in) return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
   json m;
@@ -208,28 +454,47 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
       }
       fs::path f = dir / t[key].get<std::string>();
       std::string hkey = std::string(key) == "file" ? "sha256" : "node_sha256";
-      if (!fs::is_regular_file(fs::symlink_status(f))) {
-        errors.push_back(fmt::format("textures.{}: {} is missing", name, f.string()));
+      const fs::file_status st = fs::symlink_status(f, ec);
+      if (st.type() == fs::file_type::symlink) {
+        // Choice: no symbolic links at all, to a file inside the atlas or outside it. Only the
+        // ones leaving the directory are a danger (an atlas from elsewhere reading any file the
+        // user can), but a link inside is never written by the baker, and rejecting every link
+        // needs no resolution of paths that could change between this check and the read.
+        errors.push_back(fmt::format("textures.{}.{}: {} is a symbolic link; an atlas's files "
+                                     "must be regular files in its directory",
+                                     name, key, f.string()));
         continue;
       }
-      if (!t.contains(hkey) || !t[hkey].is_string() || sha256_file(f) != t[hkey]) {
+      if (!fs::is_regular_file(st)) {
+        errors.push_back(fmt::format("textures.{}: {} is missing{}", name, f.string(),
+                                     fs::exists(st) ? " (not a regular file)" : ""));
+        continue;
+      }
+      std::string digest;
+      try {
+        digest = sha256_file(f);
+      } catch (const std::runtime_error& e) {
+        errors.push_back(fmt::format("textures.{}: {}", name, e.what()));
+        continue;
+      }
+      if (!t.contains(hkey) || !t[hkey].is_string() || digest != t[hkey]) {
         errors.push_back(
             fmt::format("textures.{}: {} does not match its sha256 (corrupted or changed)", name,
                         f.string()));
         continue;
       }
-      auto img = ImageInput::open(f.string());
-      if (!img) {
-        errors.push_back(fmt::format("textures.{}: {} cannot be read: {}", name, f.string(),
-                                     OIIO::geterror()));
+      std::array<int, 3> s{};
+      try {
+        s = atlas_image_header(f);
+      } catch (const std::runtime_error& e) {
+        errors.push_back(fmt::format("textures.{}: {}", name, e.what()));
         continue;
       }
-      const ImageSpec& s = img->spec();
-      if (!t.contains("size") || t["size"] != json::array({s.width, s.height}) ||
+      if (!t.contains("size") || t["size"] != json::array({s[0], s[1]}) ||
           !t.contains("channels") || !t["channels"].is_array() ||
-          int(t["channels"].size()) != s.nchannels)
+          int(t["channels"].size()) != s[2])
         errors.push_back(fmt::format("textures.{}: {} is {}x{}x{}, the manifest says otherwise",
-                                     name, f.string(), s.width, s.height, s.nchannels));
+                                     name, f.string(), s[0], s[1], s[2]));
     }
   }
   // The contract the evaluators rely on: every map, four channels, one size for all maps, and
@@ -261,8 +526,10 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
                                    t["size"].dump(), map_size->dump()));
     }
   }
+  if (m.contains("tier") && !m["tier"].is_string())
+    errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));
   // Ray-wave atlases: every yarn's tables are textures of this atlas.
-  if (m.value("tier", "") == "raywave") {
+  if (m.contains("tier") && m["tier"] == "raywave") {
     if (!m.contains("raywave") || !m["raywave"].is_object() || !m["raywave"].contains("yarns") ||
         !m["raywave"]["yarns"].is_object()) {
       errors.push_back("raywave: missing (a ray-wave atlas lists its ply tables there)");
@@ -273,7 +540,7 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
           errors.push_back(fmt::format("raywave.yarns.{}: missing or without \"files\"", yarn));
           continue;
         }
-        if (y.value("node_layout", "") != kAsgNodeLayout)
+        if (!y.contains("node_layout") || y["node_layout"] != kAsgNodeLayout)
           errors.push_back(fmt::format("raywave.yarns.{}.node_layout: {} is not this baker's \"{}\" "
                                        "(another baker's layout: re-bake the atlas)",
                                        yarn, y.value("node_layout", json("missing")).dump(),
@@ -317,7 +584,8 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
             errors.push_back(fmt::format("raywave.noise.files.{}: not a texture of the atlas", k));
       // Diffraction: "tables" lists its files; "delta" (the non-wave variant) has none.
       const json& dif = m["raywave"].value("diffraction", json());
-      const std::string mode = dif.is_object() ? dif.value("mode", "") : "";
+      const json& mode_j = FieldChecks::at(dif, "mode");
+      const std::string mode = mode_j.is_string() ? mode_j.get<std::string>() : "";
       if (mode != "tables" && mode != "delta") {
         errors.push_back("raywave.diffraction.mode: expected \"tables\" or \"delta\"");
       } else if (mode == "tables") {
@@ -330,6 +598,7 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
               errors.push_back(
                   fmt::format("raywave.diffraction.files.{}: not a texture of the atlas", k));
       }
+      check_raywave_fields(m, errors);
     }
   }
   if (manifest_out) *manifest_out = m;
@@ -373,7 +642,7 @@ std::optional<std::pair<fs::path, json>> find_simulation(const std::string& key,
     if (!in) continue;
     json m = json::parse(in, nullptr, false);
     if (m.is_discarded() || !m.is_object() || !m.contains("raywave") ||
-        !m["raywave"].is_object() || m["raywave"].value("simulation_key", "") != key)
+        string_field(m["raywave"], "simulation_key") != key)
       continue;
     if (!validate_atlas(c, &m).empty()) continue;
     return std::pair{fs::absolute(c), m};
@@ -406,7 +675,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
   res.dir = dir;
   if (fs::exists(fs::symlink_status(dir))) {
     json m;
-    if (!opt.force && validate_atlas(dir, &m).empty() && m.value("bake_key", "") == bake_key) {
+    if (!opt.force && validate_atlas(dir, &m).empty() && string_field(m, "bake_key") == bake_key) {
       res.reused = true;
       res.bytes = dir_bytes(dir);
       return res;
@@ -792,11 +1061,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         if (opt.progress) opt.progress("shading tables", 0.0);
         const auto st0 = std::chrono::steady_clock::now();
         auto read_table = [&](const std::string& name) {
-          Image img;
-          std::string err;
-          if (!read_exr(tmp / (name + ".exr"), img, err))
-            throw std::runtime_error(fmt::format("reading back {}: {}", name, err));
-          return img;
+          return read_atlas_image(tmp / (name + ".exr"));
         };
         std::array<double, 3> sig[2];
         for (int i = 0; i < 2; ++i) {
@@ -895,7 +1160,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
                                              std::strerror(errno)));
       json other;
       if (!opt.force && validate_atlas(dir, &other).empty() &&
-          other.value("bake_key", "") == bake_key) {
+          string_field(other, "bake_key") == bake_key) {
         fs::remove_all(tmp);  // a concurrent bake of the same spec won the race
         res.reused = true;
       } else {
@@ -931,9 +1196,11 @@ Atlas load_atlas(const fs::path& dir) {
   }
   for (auto& [name, t] : a.manifest["textures"].items()) {
     Image img;
-    std::string err;
-    if (!read_exr(dir / t["node_file"].get<std::string>(), img, err))
-      throw std::runtime_error(fmt::format("reading map {}: {}", name, err));
+    try {
+      img = read_atlas_image(dir / t["node_file"].get<std::string>());
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: textures.{}: {}", dir.string(), name, e.what()));
+    }
     if (name == "albedo_lut") {
       a.albedo_lut = std::move(img);
     } else {

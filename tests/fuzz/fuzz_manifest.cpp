@@ -5,9 +5,19 @@
 // A real ray-wave atlas (the plain preset, draft) is baked once into a scratch directory; each
 // input replaces its manifest.json, so that mutations of a valid manifest keep its textures and
 // their hashes and reach the deep readers. Properties: no crash and no sanitizer report;
-// validate_atlas either accepts or names a problem; a manifest it accepts loads, and the
-// ray-wave readers either load it or throw std::runtime_error (a clear message), never
-// anything else.
+// validate_atlas either accepts or names a problem (no empty message) and throws nothing; a
+// manifest it accepts loads, and the ray-wave readers either load it or throw
+// std::runtime_error (a clear message naming the field), never anything else.
+//
+// The contract, decided: validate_atlas checks the type of every manifest field the deep readers
+// read (and the ranges of the integers they compute with), so that the readers never meet a wrong
+// type; an nlohmann::json exception (type_error, out_of_range, ...) or any exception other than
+// std::runtime_error escaping validate_atlas, load_atlas or load_raywave is a bug of that check,
+// and is not caught here: it reaches libFuzzer as a crash. (The readers are not wrapped in a
+// catch that would turn such exceptions into runtime_error: a message from inside nlohmann names
+// no field, and a missing key read through a const json is undefined behaviour, not an
+// exception, which only the validation can prevent; the fuzz build keeps assertions on, so that
+// nlohmann's JSON_ASSERT catches such reads.)
 //
 //   build-fuzz/fuzz_manifest CORPUS -max_total_time=60   (scripts/fuzz.sh seeds CORPUS with a
 //   freshly baked manifest)

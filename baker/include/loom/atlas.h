@@ -6,6 +6,7 @@
 // evaluator). Row 0 of every file is the top (v = 1); maps tile over one weave repeat.
 // Publication is atomic: the atlas is written to a temporary sibling and renamed into place.
 #pragma once
+#include <array>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -50,9 +51,44 @@ std::string raywave_simulation_key(nlohmann::json canonical_spec, const std::str
 /// on failure nothing is left at `dir` that was not there before.
 BakeResult bake_atlas(FabricSpec spec, const std::filesystem::path& dir, const BakeOptions& opt);
 
-/// Validation of an atlas directory: schema, files, hashes, sizes, paths. Empty = valid.
+/// Validation of an atlas directory: schema, files, hashes, sizes, paths. Empty = valid; else one
+/// message per problem, naming the manifest field (e.g. "textures.ply_frame.node_file") or file.
+///
+/// The contract with every reader of the manifest (load_atlas, load_ply_tables, load_raywave and
+/// the ray-wave shading tables): a manifest that validates holds every field they read with the
+/// type they read it as, and integers within ranges that keep their arithmetic in range, so that
+/// they never meet a wrong type (no nlohmann::json exception escapes them) and may index without
+/// looking; they check the values' meaning themselves and throw std::runtime_error naming the
+/// field. The manifest is not hashed (its textures are), so this is what stands between an edited
+/// or foreign manifest and the readers (tests/fuzz/fuzz_manifest.cpp).
+///
+/// Paths, the choices: every file an atlas names (textures.*.file and textures.*.node_file, the
+/// only fields that name files; the raywave section names textures, by their keys) must be a
+/// plain file name in the atlas directory: no '/', '\\', "." or "..", so no absolute path either.
+/// The files and manifest.json must be regular files, never symbolic links, neither to a file
+/// outside the directory (which would read any file the user can) nor to one inside (the baker
+/// never writes one, and refusing all links needs no resolution of paths that could change
+/// between the check and the read). The atlas directory itself may be reached through a link.
+/// The textures' formats: .exr files are read as OpenEXR only and .tx files as TIFF only.
 std::vector<std::string> validate_atlas(const std::filesystem::path& dir,
                                         nlohmann::json* manifest_out = nullptr);
+
+/// Reads an atlas map or table file (a node_file, OpenEXR) into an Image, rows bottom-up (flipped
+/// back from the file). Throws std::runtime_error naming the file for anything but an image the
+/// baker could have written: missing, not OpenEXR (no other reader of OpenImageIO is tried),
+/// truncated or corrupted, deep or volume, 0 or more than 4 channels, larger than kMaxMapSide x
+/// 2 kMaxMapSide. Arbitrary bytes give an image or that error (tests/fuzz/fuzz_texture.cpp).
+Image read_atlas_image(const std::filesystem::path& file);
+
+/// Width, height and channels of an atlas file from its header alone: OpenEXR for ".exr", TIFF
+/// (maketx's tiled, mip-mapped .tx) for any other name; the same refusals as read_atlas_image.
+std::array<int, 3> atlas_image_header(const std::filesystem::path& file);
+
+/// Writes an image (rows bottom-up) as an atlas map in `dir`: `<name>.exr` (half or float
+/// OpenEXR, channels R, G, B, A, row 0 at the top) and `<name>.tx` (tiled mip-mapped TIFF for
+/// OSL, wrap mode `wrap`). Throws std::runtime_error.
+void write_atlas_map(const Image& img, const std::filesystem::path& dir, const std::string& name,
+                     bool half, const char* wrap);
 
 std::string sha256_file(const std::filesystem::path& p);
 std::string sha256_string(const std::string& s);
