@@ -5,12 +5,15 @@
 // (0, huge, NaN), no output is NaN, Inf or negative; and the outputs are continuous where the
 // atlas has borders that the model does not: the weave repeat's wrap (texture tiles) and the
 // blocks of the ply tables (views sweeping theta_i across them).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -295,4 +298,146 @@ TEST(Extremes, RaywaveModelIsContinuousAcrossTableBlocksAndNoiseTiles) {
     }
     EXPECT_GE(paths, 6);
   }
+}
+
+namespace {
+
+/// The directional albedo at one view: the integral over the sphere of light directions of
+/// f cos(light, normal), by the midpoint rule on n bands of equal z (equal solid angle) times 2n
+/// azimuths, each cell d_omega = (2 / n) (pi / n); `f_cos` gives f cos at a light direction.
+/// The twill with white yarns (no absorption: the most energy the preset can scatter) and, if
+/// `extreme`, specular and transmission 1 and smooth fibres (roughness 0.1, still resolved by
+/// the quadrature of sphere_albedo at n = 48); baked once per tier and variant.
+const fs::path& baked_white(const std::string& tier, bool extreme) {
+  static std::map<std::string, fs::path> dirs;
+  const std::string key = fmt::format("{}-{}", tier, extreme ? "extreme" : "white");
+  auto it = dirs.find(key);
+  if (it != dirs.end()) return it->second;
+  auto d = loom::preset("twill");
+  d["model"]["tier"] = tier;
+  for (const char* y : {"warp", "weft"}) {
+    d[y]["color"] = {{"srgb", {1.0, 1.0, 1.0}}};
+    if (!extreme) continue;
+    d[y]["specular"] = 1.0;
+    d[y]["transmission"] = 1.0;
+    d[y]["roughness"] = 0.1;
+  }
+  auto r = loom::parse_spec(d, "draft");
+  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.errors[0]);
+  fs::path dir = scratch("grazing-" + key + ".atlas");
+  loom::bake_atlas(r.spec, dir, {});
+  return dirs.emplace(key, dir).first->second;
+}
+
+double sphere_albedo(const std::function<double(vec3)>& f_cos, int n) {
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    const double z = -1 + (i + 0.5) * 2.0 / n, r = std::sqrt(1 - z * z);
+    for (int j = 0; j < 2 * n; ++j) {
+      const double ph = (j + 0.5) * M_PI / n;
+      sum += f_cos(vec3(float(r * std::cos(ph)), float(r * std::sin(ph)), float(z)));
+    }
+  }
+  return sum * (2.0 / n) * (M_PI / n);
+}
+
+}  // namespace
+
+namespace {
+
+/// Checks that the energy leaving a point stays at most 1 for views at grazing angles: the view's
+/// cosine 1e-3, 1e-6 and 0, above and below the cloth, in three azimuths (along the warp, the weft
+/// and between), at warp, weft and gap texels and h = +-1 (base_points), for every evaluator of
+/// `tier` (the surface model, its closures for node mode and OSL; the ray-wave model and its
+/// closures) on `fabric` (the twill preset, "white" or "extreme": baked_white). Energy = the
+/// integral of f cos over the light directions (green channel) plus the delta transmission of
+/// the open gaps (c, not part of f; surface_bsdf.h, raywave_albedo). Quadrature error: the albedo
+/// at 2n = 96 bands and at n = 48; the midpoint rule's error falls as 1 / n^2 where the integrand
+/// is resolved, so the finer one is within |A_96 - A_48| / 3 of the integral; allowed:
+/// |A_96 - A_48| (three times that) + 1e-5 (float evaluation, summed in double). Prints the
+/// largest energy per evaluator.
+void expect_grazing_energy_conserved(const std::string& tier, const std::string& fabric) {
+  struct Worst {
+    double albedo = 0, tol = 0;
+    std::string where;
+  };
+  std::map<std::string, Worst> worst;
+  long checked = 0;
+  const auto a = loom::load_atlas(fabric == "twill" ? baked(tier)
+                                                    : baked_white(tier, fabric == "extreme"));
+  const bool rw = tier == "raywave";
+  const loom::RaywaveData d = rw ? loom::load_raywave(a) : loom::RaywaveData();
+  struct Variant {
+    const char* name;
+    loom::Evaluator e;
+    loom::Backend b;
+  };
+  std::vector<Variant> variants = {{"model", loom::Evaluator::Model, loom::Backend::Nodes},
+                                   {"closures", loom::Evaluator::Closures, loom::Backend::Nodes}};
+  if (!rw) variants.push_back({"closures (osl)", loom::Evaluator::Closures, loom::Backend::Osl});
+  for (const auto& p : base_points(a))
+    for (double c : {1e-3, 1e-6, 0.0})
+      for (double side : {1.0, -1.0})
+        for (double az : {0.0, M_PI / 2, 0.9}) {
+          const double s = std::sqrt(1 - c * c);
+          const vec3 wo(float(s * std::cos(az)), float(s * std::sin(az)), float(side * c));
+          const double gap = loom::guard_surface_point(p).gap;
+          for (const auto& v : variants) {
+            std::function<double(vec3)> f_cos;
+            std::optional<loom::RaywavePoint> pt;
+            if (rw) {
+              // Gap diffraction left out, as raywave_albedo does: it is part of the delta's
+              // energy (gap), which no quadrature of the sphere resolves.
+              pt.emplace(d, p, wo, v.e, false);
+              f_cos = [&](vec3 wi) { return double(pt->eval(wi)[1]); };
+            } else {
+              f_cos = [&](vec3 wi) {
+                return double(loom::eval_bsdf(a, p, wi, wo, v.e, v.b)[1]) * std::fabs(wi.z);
+              };
+            }
+            const double coarse = sphere_albedo(f_cos, 48), fine = sphere_albedo(f_cos, 96);
+            const double energy = fine + gap, tol = std::fabs(fine - coarse) + 1e-5;
+            const std::string where =
+                fmt::format("{} {} {}: cos_o {} ({} side), azimuth {:.2f}, kind {}, h {:.2f}",
+                            tier, fabric, v.name, c, side > 0 ? "front" : "back", az, p.kind,
+                            p.h);
+            EXPECT_LE(energy, 1.0 + tol) << where << ": " << fine << " (at n = 48: " << coarse
+                                         << ") + gap " << gap;
+            EXPECT_TRUE(std::isfinite(energy)) << where;
+            Worst& w = worst[v.name];
+            if (energy > w.albedo) w = {energy, tol, where};
+            ++checked;
+          }
+        }
+  for (const auto& [k, w] : worst)
+    std::printf("grazing energy, %s %s %s: max %.6f (tolerance %.2g) at %s\n", tier.c_str(),
+                fabric.c_str(), k.c_str(), w.albedo, w.tol, w.where.c_str());
+  EXPECT_GE(checked, long(variants.size()) * 4 * 18);  // warp, weft, h = +-1 (gap if any)
+}
+
+}  // namespace
+
+TEST(Extremes, EnergyIsConservedAtGrazingViews) {
+  // The energy tests elsewhere view from cos >= 0.2. Measured maxima (draft twill): surface
+  // 0.58 (twill), 0.82 (white), ray-wave 0.48 (twill).
+  for (const char* fabric : {"twill", "white", "extreme"})
+    expect_grazing_energy_conserved("surface", fabric);
+  expect_grazing_energy_conserved("raywave", "twill");
+}
+
+TEST(Extremes, DISABLED_RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
+  // Fails: the model reaches 1.29 at cos_o 1e-3 seen from below, and not only at grazing
+  // views (1.57 at cos_o 0.95, 2.2 at some texels, more than 1 on average over the repeat from
+  // below; the closures up to 1.56 at cos_o 0.95). Cause: the double-layer factors multiply a
+  // point's own backward and forward light R, T (lobes and residual) by rho_b = B_total / B_t
+  // and rho_f = F_total / F_t (Eq. S.21, S.22; raywave_bsdf.cpp prepare and eval_prepared,
+  // raywave_lobes.h's weights), ratios of layer averages: a point that scatters more backwards
+  // than the top layer on average leaves with more than it received. At the failing warp
+  // texel, R = 0.44 and T = 0.57 while the back table's top layer (the weft: double_layer.h,
+  // weft over warp from below) has B_t = 0.21, so rho_b = 1.98 and
+  // R rho_b + T rho_f (1 - s) + s F_total = 1.37 (speckle noise off; 1.28 with it). Adding the
+  // layers' extra light instead, R + T (B_total - B_t) / F_t backwards and T F_total / F_t
+  // forwards, keeps the averages and conserves energy at every point (1.00 there). Enable once
+  // the ray-wave evaluators conserve energy per point.
+  expect_grazing_energy_conserved("raywave", "white");
 }
