@@ -32,11 +32,20 @@ SurfacePoint from_values(const float f[4], const float n[4], const float in[4], 
                          const float at[4], const float pr[4], const float h0[4],
                          const float h1[4]) {
   SurfacePoint p;
-  p.t = normalize(vec3(f[0], f[1], f[2]));
-  if (length(p.t) == 0) p.t = vec3(1, 0, 0);
+  // The ply frame. The stored vectors are unit only to half precision: each is divided by its
+  // length (bit for bit what this function always did for baked texels) when that length is a
+  // positive finite float; otherwise (zero, NaN, Inf, or a squared length overflowing) the raw
+  // vector goes on. texel_guard_frame (osl/include/loom/texel_guard.h, what the shaders apply)
+  // then supplies the fallbacks: it keeps unit vectors as they are, scales the raw ones without
+  // overflow, and replaces a degenerate normal or tangent.
+  const auto unit = [](vec3 v) {
+    const float l = length(v);
+    return l > 0 && std::isfinite(l) ? v / l : v;
+  };
+  p.t = unit(vec3(f[0], f[1], f[2]));
+  p.n_p = unit(vec3(n[0], n[1], n[2]));
+  texel_guard_frame(p.t, p.n_p);
   p.height = f[3];
-  p.n_p = normalize(vec3(n[0], n[1], n[2]));
-  if (!(p.n_p.z > 0)) p.n_p = vec3(0, 0, 1);
   p.h = n[3];
   p.kind = in[0];
   p.along = in[1], p.ply_id = in[2], p.gap = in[3];

@@ -441,3 +441,27 @@ TEST(Extremes, DISABLED_RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
   // the ray-wave evaluators conserve energy per point.
   expect_grazing_energy_conserved("raywave", "white");
 }
+
+TEST(Extremes, PlyFrameOfBakedTexelsIsTheirNormalisedVectors) {
+  // from_values hands the texel's frame to texel_guard_frame; for every baked texel the result
+  // is still, bit for bit, the stored tangent and normal divided by their float lengths (what it
+  // was before the guard took over the fallbacks).
+  for (const char* tier : {"surface", "raywave"}) {
+    const auto a = loom::load_atlas(baked(tier));
+    const loom::Image &fr = a.map("ply_frame"), &nr = a.map("ply_normal");
+    long differ = 0, n = 0;
+    for (int iy = 0; iy < fr.height; ++iy)
+      for (int ix = 0; ix < fr.width; ++ix) {
+        const float* f = fr.px(ix, iy);
+        const float* m = nr.px(ix, iy);
+        const vec3 t(f[0], f[1], f[2]), nn(m[0], m[1], m[2]);
+        const vec3 want_t = t / sh::length(t), want_n = nn / sh::length(nn);
+        const auto p = loom::texel_surface(a, ix, iy);
+        for (int k = 0; k < 3; ++k)
+          differ += !(p.t[k] == want_t[k]) + !(p.n_p[k] == want_n[k]);
+        ++n;
+      }
+    EXPECT_EQ(differ, 0) << tier << ": of " << n << " texels";
+    EXPECT_GT(n, 1000) << tier;
+  }
+}
