@@ -19,9 +19,10 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
   Position, W = 0 and 1: the first's Color, the second's Value). The numbers differ (both are
   uniform hashes of the sample's position), the distributions sampled do not. One Refraction
   BSDF per lobe and colour channel.
-* Closures: each lobe has a Glossy BSDF (Beckmann, anisotropic) and a Refraction BSDF (Beckmann),
-  and a Translucent BSDF, whose Color is the lobe's weight times 1 for the kind
-  raywave_lobe_closure picked and 0 for the others (Cycles allocates no closure of zero weight);
+* Closures: each lobe has a Glossy BSDF (Beckmann, anisotropic), a Refraction BSDF (Beckmann)
+  and a Translucent BSDF, whose Colors are the weights raywave_lobe_weights gives them, each
+  with its share of the lobe from raywave_lobe_closures (Cycles allocates no closure of zero
+  weight);
   the diffuse forward part (Eq. S.22) and the forward energy residual share one more
   Translucent BSDF (why not one for all: build_lobe_group), and the backward energy residual is
   a Diffuse BSDF (Roughness 0: Cycles' Lambertian diffuse closure).
@@ -56,6 +57,7 @@ NODE_LAYOUT = "lobe-major/node-scales"
 
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
+                      "LOOM_RAYWAVE_SIDE_BAND", "LOOM_RAYWAVE_REFRACTION_BAND",
                       "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_CLOSED_FORM_MU",
                       "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_INTEGRAL_WIDTHS", "LOOM_ASG_MU_MAX",
                       "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
@@ -66,13 +68,13 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "63374aef72da6d3d",
+    "include/loom/raywave_lobes.h": "039010650c854fb8",
     "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "16918456c22f417b",
+    "loom_cloth_raywave.osl": "76d7cdc53f0fa796",
 }
 
 
@@ -290,14 +292,47 @@ def asg_microfacet_weight(integral, albedo, K):
     return select(ok, integral / max_(albedo, K["LOOM_RAYWAVE_MIN_ALBEDO"]), 0.0)
 
 
-def raywave_lobe_closure(V_, xp, yp, t, p0, mu1, p1, K):
-    """raywave_lobes.h: raywave_lobe_closure(V, xp, yp, t, p0, mu1, p1, z, N, T, ax, ay) -> kind.
+def raywave_smooth_unit(x):
+    """raywave_lobes.h: raywave_smooth_unit(x) = c^2 (3 - 2 c), c = clamp(x, 0, 1) (NaN: 0, as
+    Blender's Clamp node gives)."""
+    c = clamp(x, 0.0, 1.0)
+    return c * c * (3.0 - 2.0 * c)
+
+
+def raywave_reflection_share(zz, band):
+    """raywave_lobes.h: raywave_reflection_share(zz, band) =
+    raywave_smooth_unit(0.5 (zz + band) / band)."""
+    return raywave_smooth_unit((zz + band) * (0.5 / band))
+
+
+def asg_lobe_refraction_share(V_, N, ok, band, K):
+    """raywave_lobes.h: asg_lobe_refraction_share(V, N, ok, band).
+
+        !ok: 0;  nv = N.V;  R = 2 nv N - V
+        smooth((nv - MIN_COS) / band) smooth(N.z / band) smooth((R.z - min(0.9 V.z, 0.01)) / band)
+    """
+    nv = dot(N, V_)
+    R = N * (2.0 * nv) - V_
+    a = raywave_smooth_unit((nv - K["LOOM_RAYWAVE_MIN_COS"]) * (1.0 / band))
+    b = raywave_smooth_unit(N.z * (1.0 / band))
+    c = raywave_smooth_unit((R.z - min_(0.9 * V_.z, 0.01)) * (1.0 / band))
+    return ok * a * b * c
+
+
+def raywave_lobe_closures(V_, xp, yp, t, p0, mu1, p1, K):
+    """raywave_lobes.h: raywave_lobe_closures(V, xp, yp, t, p0, mu1, p1, z, Nr, Tr, axr, ayr, Nt,
+    at, b_refl, b_refr).
 
         (x, y, z) = asg_frame(p0) in the tangent frame (raywave_from_ply)
-        z.z > 0: asg_lobe_reflection, kind 0
-        else asg_lobe_refraction_frame ok: ax = ay = asg_refraction_alpha, kind 2
-        else N = (0,0,1), T = (1,0,0), ax = ay = 1, kind 1
-    Returns (z, N, T, ax, ay, is_refl, is_refr, is_transl) with 0/1 flags for the kinds."""
+        b_refl = raywave_reflection_share(z.z, SIDE_BAND)
+        (Nr, Tr, axr, ayr) = asg_lobe_reflection (where b_refl > 0)
+        (Nt, mag, ok) = asg_lobe_refraction_frame (where b_refl < 1)
+        b_refr = asg_lobe_refraction_share(V, Nt, ok, REFRACTION_BAND); at = asg_refraction_alpha
+    Both frames are computed everywhere: where the header keeps a frame's defaults its closure's
+    share is 0, so its weight is 0 and Cycles allocates no closure. (The header's b_refr is 0
+    where b_refl = 1; here it need not be, but every weight it enters is multiplied by
+    1 - b_refl.)
+    Returns (z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr)."""
     lx, ly, lz = asg_frame(p0.x, p0.y, p0.z)
     z = raywave_from_ply(lz, xp, yp, t)
     x = raywave_from_ply(lx, xp, yp, t)
@@ -305,29 +340,31 @@ def raywave_lobe_closure(V_, xp, yp, t, p0, mu1, p1, K):
     Nr, Tr, axr, ayr = asg_lobe_reflection(V_, z, x, y, mu1, p1.x, K)
     Nt, mag, ok = asg_lobe_refraction_frame(V_, z, K)
     at = asg_refraction_alpha(mu1, p1.x, mag, Nt, z, K)
-    is_refl = z.z > 0.0
-    is_refr = (1.0 - is_refl) * ok
-    is_transl = (1.0 - is_refl) * (1.0 - ok)
-    N = select(is_refl, Nr, select(is_refr, Nt, (0.0, 0.0, 1.0)))
-    T = select(is_refl, Tr, (1.0, 0.0, 0.0))
-    ax = select(is_refl, axr, select(is_refr, at, 1.0))
-    ay = select(is_refl, ayr, select(is_refr, at, 1.0))
-    return z, N, T, ax, ay, is_refl, is_refr, is_transl
+    b_refl = raywave_reflection_share(z.z, K["LOOM_RAYWAVE_SIDE_BAND"])
+    b_refr = asg_lobe_refraction_share(V_, Nt, ok, K["LOOM_RAYWAVE_REFRACTION_BAND"], K)
+    return z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr
 
 
-def raywave_lobe_weight(is_refl, is_refr, integral, albedo, tint, open_, vis_v, vis_z, rho_b,
-                        rho_f, s, K):
-    """raywave_lobes.h: raywave_lobe_weight(kind, integral, albedo, tint, open, vis_v, vis_z,
-    rho_b, rho_f, s).
+def raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open_, vis_v, vis_z, rho_b, rho_f,
+                         s, b_refl, b_refr, K):
+    """raywave_lobes.h: raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open, vis_v,
+    vis_z, rho_b, rho_f, s, b_refl, b_refr, w_refl, w_refr, w_transl), with
+    raywave_lobe_weight(kind, ...):
 
         kind 0: asg_microfacet_weight(integral, albedo) open vis_v vis_z tint rho_b
         kind 2: asg_microfacet_weight(integral, albedo) open (1 - s) tint rho_f
         kind 1: integral open (1 - s) tint rho_f
-    Returns (the kind-0 weight, the kind-1/2 weight): each closure takes the one of its kind."""
-    mw = asg_microfacet_weight(integral, albedo, K)
-    w_refl = tint * rho_b * (mw * open_ * vis_v * vis_z)
-    w_fwd = tint * rho_f * (select(is_refr, mw, integral) * (open_ * (1.0 - s)))
-    return w_refl, w_fwd
+        w_refl = b_refl kind 0 (albedo_r);  w_refr = (1 - b_refl) b_refr kind 2 (albedo_t)
+        w_transl = (1 - b_refl) (1 - b_refr) kind 1
+    Returns (w_refl, w_refr, w_transl)."""
+    mw_r = asg_microfacet_weight(integral, albedo_r, K)
+    mw_t = asg_microfacet_weight(integral, albedo_t, K)
+    w_refl = tint * rho_b * (b_refl * (mw_r * open_ * vis_v * vis_z))
+    fwd = tint * rho_f
+    far = 1.0 - b_refl
+    w_refr = fwd * ((far * b_refr) * (mw_t * (open_ * (1.0 - s))))
+    w_transl = fwd * ((far * (1.0 - b_refr)) * (integral * (open_ * (1.0 - s))))
+    return w_refl, w_refr, w_transl
 
 
 # ======================================================================= diffraction_table.h,
@@ -782,9 +819,9 @@ def _new_group(name: str, inputs, outputs, description: str):
 
 def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
                      noise_instances=1):
-    """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closure, the
-    microfacet albedo look-up, the light-side visibility, raywave_lobe_weight and the lobe's
-    Glossy, Refraction and Translucent BSDFs (the weight of the kinds not picked is 0). Built
+    """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closures, the
+    microfacet albedo look-ups, the light-side visibility, raywave_lobe_weights and the lobe's
+    Glossy, Refraction and Translucent BSDFs (a closure whose share is 0 has weight 0). Built
     once per atlas (it holds the atlas's albedo image) and used for every lobe: a group of a few
     hundred nodes instead of one of thousands, which Blender builds and edits much faster.
 
@@ -807,24 +844,30 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
             gin.outputs[n]) for n, kind in LOBE_INPUTS}
         hor = [i[f"hor{k}"] for k in range(8)]
         V_, back = i["V"], i["back"]
-    with b.block("raywave_lobes.h: raywave_lobe_closure"):
-        z, Nl, Tl, ax, ay, is_refl, is_refr, is_transl = raywave_lobe_closure(
+    with b.block("raywave_lobes.h: raywave_lobe_closures"):
+        z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr = raywave_lobe_closures(
             V_, i["xp"], i["yp"], i["t"], i["p0"], i["mu1"], i["p1"], K)
-    with b.block("microfacet_albedo_uv, the albedo LUT, horizon_visibility(z)"):
-        ls, lt = microfacet_albedo_uv(dot(Nl, V_), sqrt(ax * ay), K)
-        node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
-                     label="microfacet_albedo")
-        node.image = albedo_image
-        b.link(vec(ls, lt, 0.0), node.inputs["Vector"])
-        E = b.vector_socket(node.outputs["Color"])
-        albedo = b.label(select(is_refr, E.y, E.x), "albedo")
-        vis_z = b.label(select(back, 1.0, node_mode.horizon_visibility(z, hor, K)), "vis_z")
+    with b.block("microfacet_albedo_uv, the albedo LUT (reflection, refraction), "
+                 "raywave_lobe_visibility(z)"):
+        albedos = []
+        for cos_nv, alpha, what in ((dot(Nr, V_), sqrt(axr * ayr), "reflection"),
+                                    (dot(Nt, V_), at, "refraction")):
+            ls, lt = microfacet_albedo_uv(cos_nv, alpha, K)
+            node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                         label=f"microfacet_albedo ({what})")
+            node.image = albedo_image
+            b.link(vec(ls, lt, 0.0), node.inputs["Vector"])
+            albedos.append(b.vector_socket(node.outputs["Color"]))
+        albedo_r = b.label(albedos[0].x, "albedo_r")
+        albedo_t = b.label(albedos[1].y, "albedo_t")
+        z_vis = vec(z.x, z.y, max_(z.z, 1e-6))
+        vis_z = b.label(select(back, 1.0, node_mode.horizon_visibility(z_vis, hor, K)), "vis_z")
     with b.block("asg.h: asg_integral"):
         integral = b.label(asg_integral(i["mu1"], i["p1"].x, i["p1"].y, K), "integral")
-    with b.block("raywave_lobes.h: raywave_lobe_weight; closures"):
-        w_refl, w_fwd = raywave_lobe_weight(is_refl, is_refr, integral, albedo, i["tint"],
-                                            i["open"], i["vis_v"], vis_z, i["rho_b"],
-                                            i["rho_f"], i["s"], K)
+    with b.block("raywave_lobes.h: raywave_lobe_weights"):
+        w_refl, w_refr, w_transl = raywave_lobe_weights(
+            integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["rho_b"],
+            i["rho_f"], i["s"], b_refl, b_refr, K)
     if noise_image is not None:
         with b.block("speckle_noise.h: noise_lobe_uv, the noise at two blur levels (Eq. S.39)"):
             _, _, lz = asg_frame(i["p0"].x, i["p0"].y, i["p0"].z)
@@ -841,27 +884,29 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
                 looked.append(b.vector_socket(node.outputs["Color"]))
             nz = b.label(looked[0] * (1.0 - nt) + looked[1] * nt, "noise")
             w_refl = w_refl * nz
-            w_fwd = w_fwd * nz
+            w_refr = w_refr * nz
+            w_transl = w_transl * nz
     with b.block("closures"):
         T, B, Nw = i["T"], i["B"], i["N"]
-        nw = normalize(T * Nl.x + B * Nl.y + Nw * Nl.z)
-        tw = normalize(T * Tl.x + B * Tl.y + Nw * Tl.z)
+        nr = normalize(T * Nr.x + B * Nr.y + Nw * Nr.z)
+        tw = normalize(T * Tr.x + B * Tr.y + Nw * Tr.z)
         gl = b.new("ShaderNodeBsdfGlossy", distribution="BECKMANN",
-                   label='microfacet("beckmann", N, T, ax, ay, 1, 0)')
-        b.link(w_refl * is_refl, gl.inputs["Color"])
-        b.link(sqrt(sqrt(ax * ay)), gl.inputs["Roughness"])
-        b.link(1.0 - sqrt(ax / ay), gl.inputs["Anisotropy"])
+                   label='microfacet("beckmann", Nr, Tr, axr, ayr, 1, 0)')
+        b.link(w_refl, gl.inputs["Color"])
+        b.link(sqrt(sqrt(axr * ayr)), gl.inputs["Roughness"])
+        b.link(1.0 - sqrt(axr / ayr), gl.inputs["Anisotropy"])
         b.link(0.0, gl.inputs["Rotation"])
-        b.link(nw, gl.inputs["Normal"])
+        b.link(nr, gl.inputs["Normal"])
         b.link(tw, gl.inputs["Tangent"])
+        nrt = normalize(T * Nt.x + B * Nt.y + Nw * Nt.z)
         rf = b.new("ShaderNodeBsdfRefraction", distribution="BECKMANN",
-                   label='microfacet("beckmann", N, N, a, a, eta, 1)')
-        b.link(w_fwd * is_refr, rf.inputs["Color"])
-        b.link(sqrt(ax), rf.inputs["Roughness"])
+                   label='microfacet("beckmann", Nt, Nt, at, at, eta, 1)')
+        b.link(w_refr, rf.inputs["Color"])
+        b.link(sqrt(at), rf.inputs["Roughness"])
         b.link(select(back, 1.0 / eta, eta), rf.inputs["IOR"])
-        b.link(nw, rf.inputs["Normal"])
+        b.link(nrt, rf.inputs["Normal"])
         tr = b.new("ShaderNodeBsdfTranslucent", label="translucent(N)")
-        b.link(w_fwd * is_transl, tr.inputs["Color"])
+        b.link(w_transl, tr.inputs["Color"])
         b.link(Nw, tr.inputs["Normal"])
         add = b.new("ShaderNodeAddShader")
         b.connect(gl.outputs["BSDF"], add.inputs[0])

@@ -447,6 +447,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     q.rho_f[size_t(c)] = fac[1][c];
     q.f_total[size_t(c)] = fac[2][c];
   }
+  int lobe_index = 0;  // over f_refl's lobes, then f_high's
   auto add_lobes = [&](const AsgTable& tab, const Image& nodes, const Image* tint) {
     const int M = int(tab.theta_i.size()), N = int(tab.h.size()), L = tab.lobes;
     const int rows = M / 2 + 1, cols = N / 2 + 1;
@@ -466,22 +467,28 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
         sample_clamped(*tint, s, tv, tp);
         tintc = {tp[0], tp[1], tp[2]};
       }
-      RaywaveClosure cl;
-      vec3 z;
-      cl.kind = raywave_lobe_closure(q.V, q.xp, q.yp, q.t, vec3(a[0], a[1], a[2]), a[3],
-                                     vec3(b[0], b[1], b[2]), z, cl.N, cl.T, cl.alpha_x, cl.alpha_y);
-      float E[4] = {0, 0, 0, 0};
-      if (cl.kind != 1) {
+      vec3 z, Nr, Tr, Nt;
+      float axr, ayr, at, b_refl, b_refr;
+      raywave_lobe_closures(q.V, q.xp, q.yp, q.t, vec3(a[0], a[1], a[2]), a[3],
+                            vec3(b[0], b[1], b[2]), z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr);
+      float Er[4] = {0, 0, 0, 0}, Et[4] = {0, 0, 0, 0};
+      if (b_refl > 0) {
         float ls, lt;
-        microfacet_albedo_uv(dot(cl.N, q.V), std::sqrt(cl.alpha_x * cl.alpha_y), ls, lt);
-        sample_clamped(*d.microfacet_albedo, ls, lt, E);
+        microfacet_albedo_uv(dot(Nr, q.V), std::sqrt(axr * ayr), ls, lt);
+        sample_clamped(*d.microfacet_albedo, ls, lt, Er);
       }
-      const float vis_z = q.back ? 1.0f : horizon_visibility(z, q.hor);
-      const vec3 w = raywave_lobe_weight(
-          cl.kind, asg_integral(a[3], b[0], b[1]), cl.kind == 0 ? E[0] : E[1],
-          vec3(tintc[0], tintc[1], tintc[2]), q.open, q.vis_v, vis_z,
-          vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]), vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s);
-      cl.weight = {w.x, w.y, w.z};
+      if (b_refr > 0) {
+        float ls, lt;
+        microfacet_albedo_uv(dot(Nt, q.V), at, ls, lt);
+        sample_clamped(*d.microfacet_albedo, ls, lt, Et);
+      }
+      const float vis_z = q.back ? 1.0f : raywave_lobe_visibility(z, q.hor);
+      vec3 w[3];  // by kind: 0 reflection, 1 translucent, 2 refraction
+      raywave_lobe_weights(asg_integral(a[3], b[0], b[1]), Er[0], Et[1],
+                           vec3(tintc[0], tintc[1], tintc[2]), q.open, q.vis_v, vis_z,
+                           vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]),
+                           vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s, b_refl, b_refr, w[0],
+                           w[2], w[1]);
       if (q.noise) {  // Eq. S.39 per lobe (speckle_noise.h)
         vec3 lx, ly, lz;
         asg_frame(a[0], a[1], a[2], lx, ly, lz);
@@ -492,22 +499,38 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
         const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
         sample_periodic(img, u, v0, n0);
         sample_periodic(img, u, v1, n1);
-        for (int c = 0; c < 3; ++c) cl.weight[size_t(c)] *= n0[c] * (1 - t) + n1[c] * t;
+        const vec3 nz(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
+                      n0[2] * (1 - t) + n1[2] * t);
+        for (vec3& wk : w) wk = wk * nz;
       }
-      // Cycles' closure setup raises the normal where needed (ensure_valid_specular_reflection).
-      const vec3 Ng(0, 0, 1);
-      if (cl.kind == 0) {
-        q.mf.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.T,
-                          cl.alpha_x, cl.alpha_y, Ng, q.V, cycles::Distribution::Beckmann);
-        q.mf_w.push_back(cl.weight);
-      } else if (cl.kind == 2) {
-        q.refr.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.alpha_x,
-                            float(LOOM_RAYWAVE_ETA), Ng, q.V, cycles::Distribution::Beckmann);
-        q.refr_w.push_back(cl.weight);
-      } else {
-        for (int c = 0; c < 3; ++c) q.transl_w[size_t(c)] += cl.weight[size_t(c)];
+      const float share[3] = {b_refl, (1 - b_refl) * (1 - b_refr), (1 - b_refl) * b_refr};
+      for (int kind = 0; kind < 3; ++kind) {
+        if (!(share[kind] > 0)) continue;
+        RaywaveClosure cl;
+        cl.kind = kind;
+        cl.lobe = lobe_index;
+        cl.share = share[kind];
+        cl.weight = {w[kind].x, w[kind].y, w[kind].z};
+        cl.N = kind == 0 ? Nr : (kind == 2 ? Nt : vec3(0, 0, 1));
+        cl.T = kind == 0 ? Tr : vec3(1, 0, 0);
+        cl.alpha_x = kind == 0 ? axr : (kind == 2 ? at : 1.0f);
+        cl.alpha_y = kind == 0 ? ayr : (kind == 2 ? at : 1.0f);
+        // Cycles' closure setup raises the normal where needed (ensure_valid_specular_reflection).
+        const vec3 Ng(0, 0, 1);
+        if (kind == 0) {
+          q.mf.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.T,
+                            cl.alpha_x, cl.alpha_y, Ng, q.V, cycles::Distribution::Beckmann);
+          q.mf_w.push_back(cl.weight);
+        } else if (kind == 2) {
+          q.refr.emplace_back(cycles::ensure_valid_specular_reflection(Ng, q.V, cl.N), cl.alpha_x,
+                              float(LOOM_RAYWAVE_ETA), Ng, q.V, cycles::Distribution::Beckmann);
+          q.refr_w.push_back(cl.weight);
+        } else {
+          for (int c = 0; c < 3; ++c) q.transl_w[size_t(c)] += cl.weight[size_t(c)];
+        }
+        q.list.push_back(cl);
       }
-      q.list.push_back(cl);
+      ++lobe_index;
     }
   };
   const int y_ = y;
@@ -726,7 +749,10 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
     const Vec3d lp{dot(L, qm.xp), dot(L, qm.yp), dot(L, qm.t)};
     const vec3 n(0, 0, 1);
     const double lambert = std::fabs(L.z) / M_PI;
-    const size_t nl = qm.refl.size() + qm.high[1].size();
+    // The lobes' closures come first (one to three a lobe), then the rest (lobe = -1): the
+    // layer's diffuse part, the residual's diffuse and translucent ones, transparent().
+    size_t nl = 0;
+    while (nl < qc.list.size() && qc.list[nl].lobe >= 0) ++nl;
     if (k == 3) {
       const double m = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * qm.res_b[1] * lambert
                                : qm.open * (1 - qm.s) * qm.rho_f[1] * qm.res_f[1] * lambert;
@@ -745,8 +771,8 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
     const double factor = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * vis_l
                                   : qm.open * (1 - qm.s) * qm.rho_f[1];
     size_t imf = 0, irf = 0;
-    for (size_t l = 0; l < nl; ++l) {
-      const RaywaveClosure& cl = qc.list[l];
+    for (size_t i = 0; i < nl; ++i) {
+      const RaywaveClosure& cl = qc.list[i];
       float c = 0;
       if (cl.kind == 0) {
         c = qc.mf[imf].eval(L) * qc.mf_w[imf][1];
@@ -758,9 +784,11 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
         c = cl.weight[1] * cycles::translucent_eval(n, L, n);
       }
       if (cl.kind != k) continue;
+      // The model's part of kind k: each lobe's share of that kind.
+      const size_t l = size_t(cl.lobe);
       const bool refl = l < qm.refl.size();
       const AsgLobe& lobe = refl ? qm.refl[l] : qm.high[1][l - qm.refl.size()];
-      const double f = asg_mixture_eval({lobe}, lp) * (refl ? nr[1] : nh[1]);
+      const double f = cl.share * asg_mixture_eval({lobe}, lp) * (refl ? nr[1] : nh[1]);
       out.first += float(f * factor);
       out.second += c;
     }

@@ -101,12 +101,16 @@ RaywaveData load_raywave(const Atlas& a);
 /// One closure of the mixture (for tests and reports): kind 0 Beckmann reflection, 1 translucent,
 /// 2 Beckmann refraction (eta LOOM_RAYWAVE_ETA), 3 diffuse, 4 transparent (the open gaps' delta
 /// transmission, less what the gap diffraction samples; the sampled diffraction lobes, which
-/// change with every shading sample, are evaluated in expectation and not listed).
+/// change with every shading sample, are evaluated in expectation and not listed). A fitted
+/// lobe gives one to three closures (raywave_lobe_closures, those of nonzero share), listed
+/// first, lobe by lobe (f_refl's, then f_high's); the rest follow with lobe = -1.
 struct RaywaveClosure {
   int kind = 0;
   shading::vec3 N, T;
   float alpha_x = 1, alpha_y = 1;
   std::array<float, 3> weight = {};
+  int lobe = -1;      ///< the fitted lobe it maps, or -1
+  float share = 1;    ///< the share of that lobe it carries (raywave_lobe_closures)
 };
 
 /// A shading point set up for one view wo (Cycles' setup/eval split): the lobes at (theta_i, h)
