@@ -23,9 +23,11 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
   and a Translucent BSDF, whose Colors are the weights raywave_lobe_weights gives them, each
   with its share of the lobe from raywave_lobe_closures (Cycles allocates no closure of zero
   weight);
-  the diffuse forward part (Eq. S.22) and the forward energy residual share one more
-  Translucent BSDF (why not one for all: build_lobe_group), and the backward energy residual is
-  a Diffuse BSDF (Roughness 0: Cycles' Lambertian diffuse closure).
+  the diffuse forward part (Eq. S.22, s k_f T) and the forward energy residual share one more
+  Translucent BSDF (why not one for all: build_lobe_group), and the backward energy residual and
+  the light the layers return backwards (k_b T, double_layer_factors.h) a Diffuse BSDF
+  (Roughness 0: Cycles' Lambertian diffuse closure); T, the point's forward light, sums each
+  lobe group's ``forward`` output and the forward residual.
   - Glossy BSDF (Beckmann) has no alpha inputs: Cycles (kernel/svm/closure.h, 4.2 to 5.x) sets
     alpha = saturate(Roughness)^2, and for 0 < Anisotropy <= 0.99 alpha_x = alpha (1 - Anisotropy)
     along Tangent, alpha_y = alpha / (1 - Anisotropy). So alpha_x = a_x <= alpha_y = a_y needs
@@ -54,6 +56,9 @@ MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
 # The lobe tables' layout this module reads: the manifest's raywave.yarns.<yarn>.node_layout, as
 # loom-bake writes it (baker/include/loom/ply_tables.h: kAsgNodeLayout).
 NODE_LAYOUT = "lobe-major/node-scales"
+# The double-layer factors this module reads: the manifest's raywave.shading.factors_layout
+# (baker/include/loom/raywave_bsdf.h: kLayerFactorsLayout; double_layer_factors.h).
+FACTORS_LAYOUT = "k_b,k_f"
 
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
@@ -63,18 +68,19 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
                       "LOOM_DIFFRACTION_ICDF_SIZE", "LOOM_DIFFRACTION_KERNEL_RAD",
                       "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES",
-                      "LOOM_NOISE_SEGMENTS_PER_REPEAT", "LOOM_NOISE_HASH_MOD", "LOOM_NOISE_LEVELS")
+                      "LOOM_NOISE_SEGMENTS_PER_REPEAT", "LOOM_NOISE_HASH_MOD", "LOOM_NOISE_LEVELS",
+                      "LOOM_DOUBLE_LAYER_BLOCKS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both).
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "039010650c854fb8",
-    "include/loom/double_layer_factors.h": "77a78f6a17ae80e2",
+    "include/loom/raywave_lobes.h": "b2296fd382f159b2",
+    "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "76d7cdc53f0fa796",
+    "loom_cloth_raywave.osl": "d152c6880a78d58a",
 }
 
 
@@ -345,26 +351,31 @@ def raywave_lobe_closures(V_, xp, yp, t, p0, mu1, p1, K):
     return z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr
 
 
-def raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open_, vis_v, vis_z, rho_b, rho_f,
-                         s, b_refl, b_refr, K):
+def raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open_, vis_v, vis_z, k_f, s,
+                         b_refl, b_refr, K):
     """raywave_lobes.h: raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open, vis_v,
-    vis_z, rho_b, rho_f, s, b_refl, b_refr, w_refl, w_refr, w_transl), with
+    vis_z, k_f, s, b_refl, b_refr, w_refl, w_refr, w_transl), with
     raywave_lobe_weight(kind, ...):
 
-        kind 0: asg_microfacet_weight(integral, albedo) open vis_v vis_z tint rho_b
-        kind 2: asg_microfacet_weight(integral, albedo) open (1 - s) tint rho_f
-        kind 1: integral open (1 - s) tint rho_f
+        kind 0: asg_microfacet_weight(integral, albedo) open vis_v vis_z tint
+        kind 2: asg_microfacet_weight(integral, albedo) open (1 - s) tint k_f
+        kind 1: integral open (1 - s) tint k_f
         w_refl = b_refl kind 0 (albedo_r);  w_refr = (1 - b_refl) b_refr kind 2 (albedo_t)
         w_transl = (1 - b_refl) (1 - b_refr) kind 1
     Returns (w_refl, w_refr, w_transl)."""
     mw_r = asg_microfacet_weight(integral, albedo_r, K)
     mw_t = asg_microfacet_weight(integral, albedo_t, K)
-    w_refl = tint * rho_b * (b_refl * (mw_r * open_ * vis_v * vis_z))
-    fwd = tint * rho_f
+    w_refl = tint * (b_refl * (mw_r * open_ * vis_v * vis_z))
+    fwd = tint * k_f
     far = 1.0 - b_refl
     w_refr = fwd * ((far * b_refr) * (mw_t * (open_ * (1.0 - s))))
     w_transl = fwd * ((far * (1.0 - b_refr)) * (integral * (open_ * (1.0 - s))))
     return w_refl, w_refr, w_transl
+
+
+def raywave_lobe_forward(integral, tint, b_refl):
+    """raywave_lobes.h: raywave_lobe_forward(integral, tint, b_refl) = integral (1 - b_refl) tint."""
+    return tint * (integral * (1.0 - b_refl))
 
 
 # ======================================================================= diffraction_table.h,
@@ -595,23 +606,34 @@ def raywave_residual_uv(theta_i, h, theta_lo, theta_hi, m, n, side):
     return (fj + (side * n + 0.5)) * (1.0 / (2.0 * n)), (fi + 0.5) * (1.0 / m)
 
 
-def raywave_residual_diffuse_weight(e_b, open_, vis_v, rho_b):
-    """raywave_lobes.h: raywave_residual_diffuse_weight = open vis_v rho_b e_b."""
-    return rho_b * e_b * (open_ * vis_v)
+def raywave_residual_diffuse_weight(e_b, open_, vis_v):
+    """raywave_lobes.h: raywave_residual_diffuse_weight = open vis_v e_b."""
+    return e_b * (open_ * vis_v)
 
 
-def raywave_residual_translucent_weight(e_f, open_, rho_f, s_blend):
-    """raywave_lobes.h: raywave_residual_translucent_weight = open (1 - s) rho_f e_f."""
-    return rho_f * e_f * (open_ * (1.0 - s_blend))
+def raywave_residual_translucent_weight(e_f, open_, k_f, s_blend):
+    """raywave_lobes.h: raywave_residual_translucent_weight = open (1 - s) k_f e_f."""
+    return k_f * e_f * (open_ * (1.0 - s_blend))
 
 
-def double_layer_uv(xi, block, theta_count, phi_count):
-    """double_layer_factors.h: double_layer_uv(xi, block, theta_count, phi_count) -> (s, tv).
+def raywave_layer_diffuse_weight(t_fwd, open_, vis_v, k_b):
+    """raywave_lobes.h: raywave_layer_diffuse_weight = open vis_v k_b t_fwd."""
+    return k_b * t_fwd * (open_ * vis_v)
+
+
+def raywave_layer_translucent_weight(t_fwd, open_, k_f, s_blend):
+    """raywave_lobes.h: raywave_layer_translucent_weight = open s k_f t_fwd."""
+    return k_f * t_fwd * (open_ * s_blend)
+
+
+def double_layer_uv(xi, block, theta_count, phi_count, K):
+    """double_layer_factors.h: double_layer_uv(xi, block, theta_count, phi_count) -> (s, tv),
+    with K the headers' constants (LOOM_DOUBLE_LAYER_BLOCKS).
 
         theta = acos(clamp(xi.z, 0, 1)) 180 / pi;  row = clamp(theta Tc / 90 - 0.5, 0, Tc - 1)
         phi = |xi.x| + |xi.y| > 1e-9 ? atan2(xi.y, xi.x) 180 / pi : 0;  phi < 0: phi += 360
         col = clamp(phi Pc / 360 + 0.5, 0.5, Pc + 0.5);  w = Pc + 2
-        s = (block w + col + 0.5) / (3 w);  tv = (row + 0.5) / Tc
+        s = (block w + col + 0.5) / (LOOM_DOUBLE_LAYER_BLOCKS w);  tv = (row + 0.5) / Tc
     """
     theta = acos(clamp(xi.z, 0.0, 1.0)) * (180.0 / math.pi)
     row = clamp(theta * (theta_count / 90.0) - 0.5, 0.0, theta_count - 1.0)
@@ -619,7 +641,8 @@ def double_layer_uv(xi, block, theta_count, phi_count):
     phi = select(phi < 0.0, phi + 360.0, phi)
     col = clamp(phi * (phi_count / 360.0) + 0.5, 0.5, phi_count + 0.5)
     w = phi_count + 2.0
-    return (col + (block * w + 0.5)) / (3.0 * w), (row + 0.5) / theta_count
+    return ((col + (block * w + 0.5)) / (K["LOOM_DOUBLE_LAYER_BLOCKS"] * w),
+            (row + 0.5) / theta_count)
 
 
 # ======================================================================= atlas checks
@@ -693,6 +716,12 @@ def atlas_problem(manifest: dict) -> str | None:
                 return (f"its lobe tables are not in the {NODE_LAYOUT!r} layout this add-on reads "
                         f"(they are {rw['yarns'][y].get('node_layout')!r}): re-bake the atlas with "
                         f"this version of loom-bake")
+        got = rw["shading"].get("factors_layout")
+        if got != FACTORS_LAYOUT:
+            return (f"raywave.shading.factors_layout is "
+                    f"{'missing' if got is None else repr(got)}, not the {FACTORS_LAYOUT!r} this "
+                    f"add-on reads (double-layer factors of an older loom-bake): re-bake the "
+                    f"atlas with this version of loom-bake")
         _grid(manifest)
         needed = set(MAPS) | {rw["shading"]["microfacet_albedo"],
                               *rw["shading"]["factors"].values()}
@@ -732,6 +761,13 @@ def atlas_problem(manifest: dict) -> str | None:
             got = list(textures[name].get("size", []))
             if got != size:
                 return f"{name} is {got}, the grids say {size}: re-bake the atlas"
+    # The double-layer factors (double_layer_factors.h: double_layer_uv).
+    want = [int(K["LOOM_DOUBLE_LAYER_BLOCKS"]) * (g["layer_phi_count"] + 2),
+            g["layer_theta_count"]]
+    for name in rw["shading"]["factors"].values():
+        got = list(textures[name].get("size", []))
+        if got != want:
+            return f"{name} is {got}, the double-layer grids say {want}: re-bake the atlas"
     dif = _diffraction(manifest)
     if dif:
         want = [int(K["LOOM_DIFFRACTION_ICDF_SIZE"]) * dif["tiles_x"],
@@ -798,7 +834,7 @@ LOBE_INPUTS = (
     ("yp", "NodeSocketVector"), ("t", "NodeSocketVector"), ("T", "NodeSocketVector"),
     ("B", "NodeSocketVector"), ("N", "NodeSocketVector"), ("back", "NodeSocketFloat"),
     *((f"hor{k}", "NodeSocketFloat") for k in range(8)), ("open", "NodeSocketFloat"),
-    ("vis_v", "NodeSocketFloat"), ("rho_b", "NodeSocketColor"), ("rho_f", "NodeSocketColor"),
+    ("vis_v", "NodeSocketFloat"), ("k_f", "NodeSocketColor"),
     ("s", "NodeSocketFloat"), ("theta_i", "NodeSocketFloat"), ("noise_instance", "NodeSocketFloat"),
     ("noise_shift", "NodeSocketFloat"))
 
@@ -833,8 +869,12 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
 
     With ``noise_image`` (the atlas's noise tile for f_refl lobes if ``refl``, else f_high's),
     each lobe's weights are scaled by the noise averaged over the lobe (speckle_noise.h,
-    noise_lobe_uv): two look-ups, one per blur level, blended."""
-    group = _new_group(name, LOBE_INPUTS, (("BSDF", "NodeSocketShader"),),
+    noise_lobe_uv): two look-ups, one per blur level, blended.
+
+    Its second output, ``forward``, is the lobe's part of the point's forward light T
+    (raywave_lobe_forward), which the layers' closures sum (double_layer_factors.h)."""
+    group = _new_group(name, LOBE_INPUTS, (("BSDF", "NodeSocketShader"),
+                                           ("forward", "NodeSocketColor")),
                        "Loom ray-wave: one fitted lobe as Cycles closures (raywave_lobes.h)")
     b = Builder(group)
     eta = K["LOOM_RAYWAVE_ETA"]
@@ -866,8 +906,9 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         integral = b.label(asg_integral(i["mu1"], i["p1"].x, i["p1"].y, K), "integral")
     with b.block("raywave_lobes.h: raywave_lobe_weights"):
         w_refl, w_refr, w_transl = raywave_lobe_weights(
-            integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["rho_b"],
-            i["rho_f"], i["s"], b_refl, b_refr, K)
+            integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["k_f"],
+            i["s"], b_refl, b_refr, K)
+        forward = raywave_lobe_forward(integral, i["tint"], b_refl)
     if noise_image is not None:
         with b.block("speckle_noise.h: noise_lobe_uv, the noise at two blur levels (Eq. S.39)"):
             _, _, lz = asg_frame(i["p0"].x, i["p0"].y, i["p0"].z)
@@ -916,6 +957,7 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         b.connect(tr.outputs["BSDF"], add2.inputs[1])
         gout = b.new("NodeGroupOutput")
         b.connect(add2.outputs["Shader"], gout.inputs["BSDF"])
+        b.link(forward, gout.inputs["forward"])
     b.layout()
     return group
 
@@ -1027,16 +1069,15 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             noise_inst, noise_shift = 0.0, 0.0
 
     # ---------------------------------------------------------------- double layer
-    with b.block("double_layer_factors.h: rho_b, rho_f, F_total at xi = V"):
+    with b.block("double_layer_factors.h: k_b, k_f at xi = V"):
         files = rw["shading"]["factors"]
         fac = []
-        for block in range(3):
-            ds, dt = double_layer_uv(V_, block, g["layer_theta_count"], g["layer_phi_count"])
+        for block in range(int(K["LOOM_DOUBLE_LAYER_BLOCKS"])):
+            ds, dt = double_layer_uv(V_, block, g["layer_theta_count"], g["layer_phi_count"], K)
             cf, _ = table(files["front"], ds, dt, what=f"block {block}")
             cb, _ = table(files["back"], ds, dt, what=f"block {block}")
             fac.append(select(back, cb, cf))
-        rho_b, rho_f, f_total = (b.label(f, n) for f, n in zip(fac, ("rho_b", "rho_f",
-                                                                     "F_total")))
+        k_b, k_f = (b.label(f, n) for f, n in zip(fac, ("k_b", "k_f")))
 
     with b.block("raywave_lobes.h: asg_node_coord"):
         fi = b.label(asg_node_coord(theta_i, g["theta_min"], g["theta_max"], M), "fi")
@@ -1075,7 +1116,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                 args = {"p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "V": V_, "xp": xp,
                         "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
                         **{f"hor{k}": hor[k] for k in range(8)}, "open": open_,
-                        "vis_v": vis_v, "rho_b": rho_b, "rho_f": rho_f, "s": g["blend"],
+                        "vis_v": vis_v, "k_f": k_f, "s": g["blend"],
                         "theta_i": theta_i, "noise_instance": noise_inst,
                         "noise_shift": noise_shift}
                 for n, _kind in LOBE_INPUTS:
@@ -1095,10 +1136,17 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             e_w = per_yarn[tex_params["residual_warp"]]
             e_e = per_yarn[tex_params["residual_weft"]]
             res[side] = e_w if e_w is e_e else select(weft, e_e, e_w)
-        w_diffuse = b.label(raywave_residual_diffuse_weight(res[0], open_, vis_v, rho_b),
-                            "residual diffuse weight")
-        w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, rho_f, g["blend"]),
-                           "residual translucent weight")
+        # The point's forward light T (double_layer_factors.h): the lobes' parts, then e_f.
+        t_fwd = res[1]
+        for node in lobe_outputs:
+            t_fwd = t_fwd + b.vector_socket(node.outputs["forward"])
+        t_fwd = b.label(t_fwd, "T (forward light)")
+        w_diffuse = b.label(raywave_residual_diffuse_weight(res[0], open_, vis_v)
+                            + raywave_layer_diffuse_weight(t_fwd, open_, vis_v, k_b),
+                            "residual and layers' diffuse weight")
+        w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, k_f, g["blend"])
+                           + raywave_layer_translucent_weight(t_fwd, open_, k_f, g["blend"]),
+                           "residual and layers' translucent weight")
 
     # ---------------------------------------------------------------- gap diffraction
     gap = 1.0 - open_
@@ -1163,10 +1211,11 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     # ---------------------------------------------------------------- closures
     with b.block("Closures (loom_cloth_raywave.osl)"):
         tr = b.new("ShaderNodeBsdfTranslucent",
-                   label="translucent(N) * (open s F_total + residual translucent weight)")
-        b.link(f_total * (open_ * g["blend"]) + w_transl, tr.inputs["Color"])
+                   label="translucent(N) * (residual and layers' translucent weight)")
+        b.link(w_transl, tr.inputs["Color"])
         b.link(Nw, tr.inputs["Normal"])
-        dif_node = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * residual diffuse weight")
+        dif_node = b.new("ShaderNodeBsdfDiffuse",
+                         label="diffuse(N) * (residual and layers' diffuse weight)")
         dif_node.inputs["Roughness"].default_value = 0.0
         b.link(w_diffuse, dif_node.inputs["Color"])
         b.link(Nw, dif_node.inputs["Normal"])
@@ -1174,8 +1223,12 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                        label="transparent() * (1 - open), less the sampled diffraction")
         b.link(gap_delta, transp.inputs["Color"])
         total = None
-        for out in (transp.outputs["BSDF"], tr.outputs["BSDF"], dif_node.outputs["BSDF"],
-                    *gap_lobes, *(n.outputs["BSDF"] for n in lobe_outputs)):
+        # The lobes first: Cycles' SVM compiler emits the closures of an Add Shader chain in
+        # order, and a value stays on its stack (255 floats) until its last user is compiled.
+        # The layers' closures read every lobe's `forward`; compiled after the lobes, they keep
+        # only those few values alive, not every lobe's look-ups (see build_lobe_group).
+        for out in (*(n.outputs["BSDF"] for n in lobe_outputs), *gap_lobes,
+                    transp.outputs["BSDF"], tr.outputs["BSDF"], dif_node.outputs["BSDF"]):
             if total is None:
                 total = out
                 continue

@@ -18,32 +18,39 @@ double radial(double k, double r0, double r1) {
 }
 }  // namespace
 
-double asg_backward_fraction(const AsgLobe& q) {
+double asg_side_fraction(const AsgLobe& q, const Vec3d& n, int steps) {
   shading::vec3 x, y, z;
   shading::asg_frame(float(q.theta_z), float(q.phi_z), float(q.phi_xy), x, y, z);
   const double m1 = std::clamp(q.mu1, 0.0, double(LOOM_ASG_MU_MAX));
   const double m2 = std::clamp(q.mu2, 0.0, double(LOOM_ASG_MU_MAX));
-  double all = 0, back = 0;
-  for (int i = 0; i < kFractionSteps; ++i) {
+  const double xn = x.x * n.x + x.y * n.y + x.z * n.z, yn = y.x * n.x + y.y * n.y + y.z * n.z,
+               qz = z.x * n.x + z.y * n.y + z.z * n.z;
+  steps = std::max(steps, 8);
+  double all = 0, side = 0;
+  for (int i = 0; i < steps; ++i) {
     // On the ray (a, b) = rho (cos psi, sin psi) of the disk, v = a x + b y + sqrt(1 - rho^2) z
     // and the integrand is exp(-k rho^2) rho, k = mu1 cos^2 + mu2 sin^2 (asg.h).
-    const double psi = (i + 0.5) * 2 * M_PI / kFractionSteps, c = std::cos(psi), sn = std::sin(psi);
+    const double psi = (i + 0.5) * 2 * M_PI / steps, c = std::cos(psi), sn = std::sin(psi);
     const double k = m1 * c * c + m2 * sn * sn;
     const double full = radial(k, 0, 1);
     all += full;
-    // v.y = rho p + sqrt(1 - rho^2) qz changes sign at most once on [0, 1], at
-    // rho* = |qz| / hypot(p, qz): the backward part is an interval, integrated exactly.
-    const double p = c * x.y + sn * y.y, qz = z.y;
+    // v.n = rho p + sqrt(1 - rho^2) qz changes sign at most once on [0, 1], at
+    // rho* = |qz| / hypot(p, qz): the part on the side is an interval, integrated exactly.
+    const double p = c * xn + sn * yn;
     if (qz > 0) {
-      back += p >= 0 ? full : radial(k, 0, qz / std::hypot(p, qz));
+      side += p >= 0 ? full : radial(k, 0, qz / std::hypot(p, qz));
     } else if (qz < 0) {
-      if (p > 0) back += radial(k, -qz / std::hypot(p, qz), 1);
+      if (p > 0) side += radial(k, -qz / std::hypot(p, qz), 1);
     } else if (p > 0) {
-      back += full;
+      side += full;
     }
   }
-  if (!(all > 0)) return z.y > 0 ? 1.0 : 0.0;
-  return std::clamp(back / all, 0.0, 1.0);
+  if (!(all > 0)) return qz > 0 ? 1.0 : 0.0;
+  return std::clamp(side / all, 0.0, 1.0);
+}
+
+double asg_backward_fraction(const AsgLobe& q) {
+  return asg_side_fraction(q, Vec3d{0, 1, 0}, kFractionSteps);
 }
 
 void ply_sim_side_energy(const PlySimSettings& s, const float* density, double& back,

@@ -571,6 +571,14 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
         if (!name.is_string() || !tex.contains(name.get<std::string>()))
           errors.push_back(fmt::format("raywave.shading.factors.{}: not a texture of the atlas", f));
       }
+      if (!sh.is_object() || !sh.contains("factors_layout") ||
+          sh["factors_layout"] != kLayerFactorsLayout)
+        errors.push_back(fmt::format(
+            "raywave.shading.factors_layout: {} is not this baker's \"{}\" (double-layer factors "
+            "of another baker: re-bake the atlas)",
+            sh.is_object() && sh.contains("factors_layout") ? sh["factors_layout"].dump()
+                                                            : std::string("missing"),
+            kLayerFactorsLayout));
       if (!sh.is_object() || !sh.value("microfacet_albedo", json()).is_string() ||
           !tex.contains(sh["microfacet_albedo"].get<std::string>()))
         errors.push_back("raywave.shading.microfacet_albedo: not a texture of the atlas");
@@ -852,8 +860,9 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         const PlySimResult& weft_sim = yarn_tables[1] ? yarn_tables[1]->raw : warp_sim;
         const Layer warp_layer{&warp_sim, {1, 0, 0}}, weft_layer{&weft_sim, {0, 1, 0}};
         const DoubleLayerSettings dls = double_layer_settings(spec.quality);
-        // components.double_layer off: one layer, B_total = B_t and F_total = F_t (factors 1)
-        // and no diffuse part (s = 0), without simulating the second layer.
+        // components.double_layer off: one layer, B_total = B_t and F_total = F_t (k_b = 0,
+        // k_f = 1: double_layer_factors.h) and no diffuse part (s = 0), without simulating the
+        // second layer.
         const bool two_layers = spec.components.double_layer;
         json dl = {{"theta_count", dls.theta_count},
                    {"phi_count", dls.phi_count},
@@ -1094,6 +1103,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           sig_layers[size_t(c)] = 0.5 * (sig[0][size_t(c)] + sig[1][size_t(c)]);
         const json& dl = raywave["double_layer"];
         json shading = {{"factors", json::object()},
+                        {"factors_layout", kLayerFactorsLayout},
                         {"microfacet_albedo", "microfacet_albedo"},
                         {"layer_sigma_rgb_per_mm", sig_layers},
                         // Eq. S.10's weight between absorption levels (absorption_curve.h).
@@ -1107,8 +1117,9 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
           g.absorption = layer_absorption_curve(raywave);
           const std::string name = std::string("layer_factors_") + side;
           add_table(layer_factors_image(g, sig_layers), name, {"r", "g", "b"},
-                    "double-layer factors B_total/B_t, F_total/F_t, F_total (Eq. S.21, S.22) at "
-                    "the yarns' absorption, three blocks of phi_count + 2 columns "
+                    "per-point double-layer factors k_b = (B_total - B_t) / F_t, k_f = F_total / "
+                    "F_t (Eq. S.20-S.22) at the yarns' absorption, two blocks of phi_count + 2 "
+                    "columns "
                     "(osl/include/loom/double_layer_factors.h)");
           shading["factors"][side] = name;
         }

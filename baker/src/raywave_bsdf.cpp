@@ -18,6 +18,11 @@ using nlohmann::json;
 
 namespace {
 
+/// Polar nodes of asg_side_fraction for the model's forward light T (prepare): at 256 the
+/// fraction is within 2e-3 of 2048 nodes' on the fitted lobes (test_asg_residual.cpp), an eighth
+/// of the cost per shading point.
+constexpr int kModelFractionSteps = 256;
+
 /// Blender's linear image texture with EXTEND borders at (s, tv), tv from the bottom.
 void sample_clamped(const Image& img, float s, float tv, float out[4]) {
   float px = std::clamp(s * float(img.width) - 0.5f, 0.0f, float(img.width - 1));
@@ -51,12 +56,25 @@ void sample_periodic(const Image& img, float s, float tv, float out[4]) {
   }
 }
 
-/// A double-layer ratio (Eq. S.21, S.22), 1 where the denominator vanishes, at most 10 (the
-/// geometric series of S.20 can make B_total / B_t large where B_t is tiny at grazing angles;
-/// the cap keeps such texels from turning into fireflies).
-float safe_ratio(double a, double b) {
-  if (!(b > 1e-6) || !std::isfinite(a)) return 1.0f;
-  return float(std::clamp(a / b, 0.0, 10.0));
+/// The per-point double-layer factors of double_layer_factors.h from Eq. S.20's tabulated
+/// values: k_b = (B_total - B_t) / F_t >= 0 and k_f = F_total / F_t, with k_b + k_f <= 1 (both
+/// scaled down to sum 1 where interpolation or the simulation's noise would give more: Eq. S.20
+/// gives F_tb / (1 - B_tb), at most 1 for a bottom layer that conserves energy); 0 and 1 (one
+/// layer) where F_t vanishes or a value is not finite.
+void layer_factor_pair(const DoubleLayerFactors& f, float& kb, float& kf) {
+  kb = 0.0f;
+  kf = 1.0f;
+  if (!(f.Ft > 1e-6) || !std::isfinite(f.Bt) || !std::isfinite(f.Btotal) ||
+      !std::isfinite(f.Ftotal) || !std::isfinite(f.Ft))
+    return;
+  double b = std::max((f.Btotal - f.Bt) / f.Ft, 0.0), t = std::max(f.Ftotal / f.Ft, 0.0);
+  if (b + t > 1) {
+    const double sum = b + t;
+    b /= sum;
+    t /= sum;
+  }
+  kb = float(b);
+  kf = float(t);
 }
 
 }  // namespace
@@ -135,7 +153,7 @@ DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const vec3& xi, dou
 
 Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb) {
   const int T = g.theta_count, P = g.phi_count, W = P + 2;
-  Image img(3 * W, T, 3);
+  Image img(LOOM_DOUBLE_LAYER_BLOCKS * W, T, 3);
   for (int t = 0; t < T; ++t)
     for (int col = 0; col < W; ++col) {
       const int p = ((col - 1) % P + P) % P;
@@ -143,10 +161,10 @@ Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>&
       const vec3 xi(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
                     float(std::cos(th)));
       for (int c = 0; c < 3; ++c) {
-        const DoubleLayerFactors f = double_layer_at(g, xi, sigma_rgb[size_t(c)]);
-        img.px(col, t)[c] = safe_ratio(f.Btotal, f.Bt);
-        img.px(W + col, t)[c] = safe_ratio(f.Ftotal, f.Ft);
-        img.px(2 * W + col, t)[c] = float(std::max(f.Ftotal, 0.0));
+        float kb, kf;
+        layer_factor_pair(double_layer_at(g, xi, sigma_rgb[size_t(c)]), kb, kf);
+        img.px(col, t)[c] = kb;
+        img.px(W + col, t)[c] = kf;
       }
     }
   return img;
@@ -252,6 +270,12 @@ RaywaveData load_raywave(const Atlas& a) {
                                            "{}x{}", key, g.table.width, g.table.height,
                                            g.phi_count, g.theta_count * g.sigmas.size()));
     d.factors[side] = &a.map(rw["shading"]["factors"][key].get<std::string>());
+    if (d.factors[side]->width != LOOM_DOUBLE_LAYER_BLOCKS * (g.phi_count + 2) ||
+        d.factors[side]->height != g.theta_count)
+      throw std::runtime_error(fmt::format(
+          "raywave.shading.factors.{}: table is {}x{}, the grids say {}x{}", key,
+          d.factors[side]->width, d.factors[side]->height,
+          LOOM_DOUBLE_LAYER_BLOCKS * (g.phi_count + 2), g.theta_count));
   }
   d.microfacet_albedo = &a.map(rw["shading"]["microfacet_albedo"].get<std::string>());
   // Gap diffraction (diffraction_sampling.h), when the atlas has a gap table.
@@ -315,7 +339,10 @@ struct RaywavePoint::Impl {
   // model
   std::vector<AsgLobe> refl, high[3];
   std::array<float, 3> res_b{}, res_f{};  ///< energy residual per side (asg_residual.h)
-  std::array<float, 3> rho_b{}, rho_f{}, f_total{};
+  /// double_layer_factors.h: k_b, k_f at xi = V, and the point's forward light T (model: the
+  /// lobes' energy below the cloth's plane plus the forward residual; closures: the lobes'
+  /// raywave_lobe_forward plus e_f)
+  std::array<float, 3> k_b{}, k_f{}, t_fwd{};
   // closures
   std::vector<cycles::MicrofacetReflection> mf;
   std::vector<std::array<float, 3>> mf_w;
@@ -420,33 +447,49 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
   }
   if (e == Evaluator::Model) {
     q.refl = asg_table_lobes(d.yarn[y].refl, theta_i, h, 0.0);
-    for (int c = 0; c < 3; ++c) {
+    for (int c = 0; c < 3; ++c)
       q.high[c] = asg_table_lobes(d.yarn[y].high, theta_i, h, sigma[y][size_t(c)]);
-      const DoubleLayerFactors f = double_layer_at(d.layers[side], q.V, sig_layers[size_t(c)]);
-      q.rho_b[size_t(c)] = safe_ratio(f.Btotal, f.Bt);
-      q.rho_f[size_t(c)] = safe_ratio(f.Ftotal, f.Ft);
-      q.f_total[size_t(c)] = float(std::max(f.Ftotal, 0.0));
+    // The point's forward light T: each lobe's integral times its fraction below the cloth's
+    // plane (the plane's normal in ply space), which S.10 and S.11 leave the same for every
+    // channel (they scale amplitudes only).
+    const Vec3d n_ply{q.xp.z, q.yp.z, q.t.z};
+    std::array<double, 3> fwd{0, 0, 0};
+    for (const AsgLobe& l : q.refl) {
+      const double below = 1 - asg_side_fraction(l, n_ply, kModelFractionSteps);
+      for (int c = 0; c < 3; ++c) fwd[size_t(c)] += below * asg_integral(l.mu1, l.mu2, l.c);
+    }
+    for (size_t l = 0; l < q.high[0].size(); ++l) {
+      const double below = 1 - asg_side_fraction(q.high[0][l], n_ply, kModelFractionSteps);
+      for (int c = 0; c < 3; ++c) {
+        const AsgLobe& lc = q.high[c][l];
+        fwd[size_t(c)] += below * asg_integral(lc.mu1, lc.mu2, lc.c);
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      layer_factor_pair(double_layer_at(d.layers[side], q.V, sig_layers[size_t(c)]),
+                        q.k_b[size_t(c)], q.k_f[size_t(c)]);
       double rb, rf, hb, hf;
       asg_residual_at(d.yarn[y].refl, theta_i, h, 0.0, rb, rf);
       asg_residual_at(d.yarn[y].high, theta_i, h, sigma[y][size_t(c)], hb, hf);
       q.res_b[size_t(c)] = float(rb + hb);
       q.res_f[size_t(c)] = float(rf + hf);
+      q.t_fwd[size_t(c)] = float(fwd[size_t(c)] + q.res_f[size_t(c)]);
     }
     return q;
   }
   // Closures: the shaders' look-ups and shared functions.
   const DoubleLayerGrid& g = d.layers[side];
-  float fac[3][4];
-  for (int b = 0; b < 3; ++b) {
+  float fac[LOOM_DOUBLE_LAYER_BLOCKS][4];
+  for (int b = 0; b < LOOM_DOUBLE_LAYER_BLOCKS; ++b) {
     float s, tv;
     double_layer_uv(q.V, b, g.theta_count, g.phi_count, s, tv);
     sample_clamped(*d.factors[side], s, tv, fac[b]);
   }
   for (int c = 0; c < 3; ++c) {
-    q.rho_b[size_t(c)] = fac[0][c];
-    q.rho_f[size_t(c)] = fac[1][c];
-    q.f_total[size_t(c)] = fac[2][c];
+    q.k_b[size_t(c)] = fac[0][c];
+    q.k_f[size_t(c)] = fac[1][c];
   }
+  vec3 t_fwd(0, 0, 0);  // the lobes' part of T (raywave_lobe_forward), e_f added below
   int lobe_index = 0;  // over f_refl's lobes, then f_high's
   auto add_lobes = [&](const AsgTable& tab, const Image& nodes, const Image* tint) {
     const int M = int(tab.theta_i.size()), N = int(tab.h.size()), L = tab.lobes;
@@ -484,11 +527,12 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
       }
       const float vis_z = q.back ? 1.0f : raywave_lobe_visibility(z, q.hor);
       vec3 w[3];  // by kind: 0 reflection, 1 translucent, 2 refraction
-      raywave_lobe_weights(asg_integral(a[3], b[0], b[1]), Er[0], Et[1],
-                           vec3(tintc[0], tintc[1], tintc[2]), q.open, q.vis_v, vis_z,
-                           vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]),
-                           vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s, b_refl, b_refr, w[0],
-                           w[2], w[1]);
+      const float integral = asg_integral(a[3], b[0], b[1]);
+      const vec3 tint3(tintc[0], tintc[1], tintc[2]);
+      raywave_lobe_weights(integral, Er[0], Et[1], tint3, q.open, q.vis_v, vis_z,
+                           vec3(q.k_f[0], q.k_f[1], q.k_f[2]), q.s, b_refl, b_refr, w[0], w[2],
+                           w[1]);
+      t_fwd = t_fwd + raywave_lobe_forward(integral, tint3, b_refl);
       if (q.noise) {  // Eq. S.39 per lobe (speckle_noise.h)
         vec3 lx, ly, lz;
         asg_frame(a[0], a[1], a[2], lx, ly, lz);
@@ -536,15 +580,9 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
   const int y_ = y;
   add_lobes(d.yarn[y_].refl, *d.nodes_refl[y_], nullptr);
   add_lobes(d.yarn[y_].high, *d.nodes_high[y_], d.tint[y_]);
-  RaywaveClosure diffuse;
-  diffuse.kind = 1;
-  diffuse.N = vec3(0, 0, 1);
-  for (int c = 0; c < 3; ++c) {
-    diffuse.weight[size_t(c)] = q.open * q.s * q.f_total[size_t(c)];
-    q.transl_w[size_t(c)] += diffuse.weight[size_t(c)];
-  }
-  q.list.push_back(diffuse);
-  // The energy residual (raywave_lobes.h): diffuse reflection and diffuse transmission.
+  // The energy residual (raywave_lobes.h): diffuse reflection and diffuse transmission; then
+  // the layers' light from the point's forward light T (double_layer_factors.h): the diffuse
+  // BTDF of Eq. S.22 and the light returned backwards, each one closure after the lobes'.
   {
     const AsgTable& tab = d.yarn[y_].high;
     float eb[4], ef[4], s, tv;
@@ -554,10 +592,25 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     raywave_residual_uv(theta_i, h, float(tab.theta_i.front()), float(tab.theta_i.back()),
                         int(tab.theta_i.size()), int(tab.h.size()), 1, s, tv);
     sample_clamped(*d.residual[y_], s, tv, ef);
-    const vec3 wd = raywave_residual_diffuse_weight(vec3(eb[0], eb[1], eb[2]), q.open, q.vis_v,
-                                                    vec3(q.rho_b[0], q.rho_b[1], q.rho_b[2]));
-    const vec3 wt = raywave_residual_translucent_weight(
-        vec3(ef[0], ef[1], ef[2]), q.open, vec3(q.rho_f[0], q.rho_f[1], q.rho_f[2]), q.s);
+    const vec3 kf(q.k_f[0], q.k_f[1], q.k_f[2]), kb(q.k_b[0], q.k_b[1], q.k_b[2]);
+    t_fwd = t_fwd + vec3(ef[0], ef[1], ef[2]);
+    for (int c = 0; c < 3; ++c) q.t_fwd[size_t(c)] = t_fwd[c];
+    RaywaveClosure layer_t, layer_d;
+    layer_t.kind = 1;
+    layer_d.kind = 3;
+    layer_t.N = layer_d.N = vec3(0, 0, 1);
+    const vec3 wlt = raywave_layer_translucent_weight(t_fwd, q.open, kf, q.s);
+    const vec3 wld = raywave_layer_diffuse_weight(t_fwd, q.open, q.vis_v, kb);
+    layer_t.weight = {wlt.x, wlt.y, wlt.z};
+    layer_d.weight = {wld.x, wld.y, wld.z};
+    for (int c = 0; c < 3; ++c) {
+      q.transl_w[size_t(c)] += layer_t.weight[size_t(c)];
+      q.diffuse_w[size_t(c)] += layer_d.weight[size_t(c)];
+    }
+    q.list.push_back(layer_t);
+    q.list.push_back(layer_d);
+    const vec3 wd = raywave_residual_diffuse_weight(vec3(eb[0], eb[1], eb[2]), q.open, q.vis_v);
+    const vec3 wt = raywave_residual_translucent_weight(vec3(ef[0], ef[1], ef[2]), q.open, kf, q.s);
     RaywaveClosure rd, rt;
     rd.kind = 3;
     rt.kind = 1;
@@ -676,12 +729,15 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
       const double f = fr * nr[c] + asg_mixture_eval(q.high[c], lp) * nh[c];
       double v;
       const double lambert = std::fabs(L.z) / M_PI;  // the residual's lobes (asg_residual.h)
+      // double_layer_factors.h: backward R + k_b T, forward k_f T.
+      const size_t cc = size_t(c);
       if (L.z > 0) {
         const float vis_l = q.back ? 1.0f : horizon_visibility(L, const_cast<float*>(q.hor));
-        v = q.open * q.vis_v * q.rho_b[size_t(c)] * (vis_l * f + q.res_b[size_t(c)] * lambert);
+        v = q.open * q.vis_v *
+            (vis_l * f + (q.res_b[cc] + q.k_b[cc] * q.t_fwd[cc]) * lambert);
       } else {
-        v = q.open * ((1 - q.s) * q.rho_f[size_t(c)] * (f + q.res_f[size_t(c)] * lambert) +
-                      q.s * q.f_total[size_t(c)] * lambert);
+        v = q.open * q.k_f[cc] *
+            ((1 - q.s) * (f + q.res_f[cc] * lambert) + q.s * q.t_fwd[cc] * lambert);
       }
       out[size_t(c)] = float(v);
     }
@@ -741,7 +797,8 @@ std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, 
 MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int texels,
                                       int views, int sphere_n) {
   // Part k of the model and of the closures at L (green, f cos): 0 reflection, 2 refraction,
-  // 1 translucent lobes (by the closures' kind), 3 the energy residual, 4 the layer's diffuse.
+  // 1 translucent lobes (by the closures' kind), 3 the energy residual, 4 the layers' light from
+  // T (the diffuse BTDF of S.22 and the light returned backwards: double_layer_factors.h).
   auto part = [](const RaywavePoint::Impl& qm, const RaywavePoint::Impl& qc, int k, vec3 wi) {
     std::pair<float, float> out{0.0f, 0.0f};
     if (!qm.valid || !qc.valid) return out;
@@ -750,26 +807,29 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
     const vec3 n(0, 0, 1);
     const double lambert = std::fabs(L.z) / M_PI;
     // The lobes' closures come first (one to three a lobe), then the rest (lobe = -1): the
-    // layer's diffuse part, the residual's diffuse and translucent ones, transparent().
+    // layers' translucent and diffuse parts, the residual's diffuse and translucent ones,
+    // transparent().
     size_t nl = 0;
     while (nl < qc.list.size() && qc.list[nl].lobe >= 0) ++nl;
     if (k == 3) {
-      const double m = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * qm.res_b[1] * lambert
-                               : qm.open * (1 - qm.s) * qm.rho_f[1] * qm.res_f[1] * lambert;
-      const float c = qc.list[nl + 1].weight[1] * cycles::diffuse_eval(n, L, n) +
-                      qc.list[nl + 2].weight[1] * cycles::translucent_eval(n, L, n);
+      const double m = L.z > 0 ? qm.open * qm.vis_v * qm.res_b[1] * lambert
+                               : qm.open * (1 - qm.s) * qm.k_f[1] * qm.res_f[1] * lambert;
+      const float c = qc.list[nl + 2].weight[1] * cycles::diffuse_eval(n, L, n) +
+                      qc.list[nl + 3].weight[1] * cycles::translucent_eval(n, L, n);
       return std::pair<float, float>(float(m), c);
     }
     if (k == 4) {
-      const double m = L.z < 0 ? qm.open * qm.s * qm.f_total[1] * lambert : 0.0;
-      return std::pair<float, float>(float(m),
-                                     qc.list[nl].weight[1] * cycles::translucent_eval(n, L, n));
+      const double m = L.z < 0 ? qm.open * qm.s * qm.k_f[1] * qm.t_fwd[1] * lambert
+                               : qm.open * qm.vis_v * qm.k_b[1] * qm.t_fwd[1] * lambert;
+      return std::pair<float, float>(
+          float(m), qc.list[nl].weight[1] * cycles::translucent_eval(n, L, n) +
+                        qc.list[nl + 1].weight[1] * cycles::diffuse_eval(n, L, n));
     }
     float nr[4], nh[4];
     model_noise(qm, lp, nr, nh);
     const float vis_l = qm.back || L.z <= 0 ? 1.0f : horizon_visibility(L, const_cast<float*>(qm.hor));
-    const double factor = L.z > 0 ? qm.open * qm.vis_v * qm.rho_b[1] * vis_l
-                                  : qm.open * (1 - qm.s) * qm.rho_f[1];
+    const double factor = L.z > 0 ? qm.open * qm.vis_v * vis_l
+                                  : qm.open * (1 - qm.s) * qm.k_f[1];
     size_t imf = 0, irf = 0;
     for (size_t i = 0; i < nl; ++i) {
       const RaywaveClosure& cl = qc.list[i];

@@ -190,7 +190,22 @@ def check_table_sizes(atlas):
         bad["textures"][name]["size"][0] += 1
         why = node_mode_raywave.atlas_problem(bad)
         assert why and name in why and "re-bake" in why, (part, why)
-    print("loom-test: table sizes checked against the grids")
+    bad = copy.deepcopy(m)
+    name = bad["raywave"]["shading"]["factors"]["back"]
+    bad["textures"][name]["size"][0] = bad["textures"][name]["size"][0] * 3 // 2  # 3 blocks
+    why = node_mode_raywave.atlas_problem(bad)
+    assert why and name in why and "re-bake" in why, why
+    # Double-layer factors of an older loom-bake (ratios, not the per-point k_b, k_f).
+    for value in (None, "ratios"):
+        bad = copy.deepcopy(m)
+        if value is None:
+            del bad["raywave"]["shading"]["factors_layout"]
+        else:
+            bad["raywave"]["shading"]["factors_layout"] = value
+        why = node_mode_raywave.atlas_problem(bad)
+        assert why and "raywave.shading.factors_layout" in why and "re-bake" in why, why
+        assert ("missing" if value is None else repr(value)) in why, why
+    print("loom-test: table sizes and the factors' layout checked against the grids")
 
 
 def main():

@@ -328,6 +328,11 @@ TEST(AtlasRejection, RaywaveFieldsOfTheWrongTypeAreRefusedNamingTheField) {
        "raywave.double_layer.sigma_per_mm"},
       {"/raywave/double_layer/blend", "half", "raywave.double_layer.blend"},
       {"/raywave/shading/sigma_interpolation", 0, "raywave.shading.sigma_interpolation"},
+      // The double-layer factors of older bakers (B_total / B_t, F_total / F_t, F_total) read as
+      // k_b, k_f would render wrong light: refused, with the field named.
+      {"/raywave/shading/factors_layout", nullptr,
+       "raywave.shading.factors_layout: missing is not this baker's \"k_b,k_f\""},
+      {"/raywave/shading/factors_layout", "ratios", "raywave.shading.factors_layout"},
       {"/raywave/diffraction/mode", 5, "raywave.diffraction.mode"},
       {"/raywave/diffraction/tile_size", 0, "raywave.diffraction.tile_size"},
       {"/raywave/diffraction/gap_fraction", json::array({0.1}), "raywave.diffraction.gap_fraction"},

@@ -434,21 +434,72 @@ TEST(Extremes, EnergyIsConservedAtGrazingViews) {
   expect_grazing_energy_conserved("raywave", "twill");
 }
 
-TEST(Extremes, DISABLED_RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
-  // Fails: the model reaches 1.29 at cos_o 1e-3 seen from below, and not only at grazing
-  // views (1.57 at cos_o 0.95, 2.2 at some texels, more than 1 on average over the repeat from
-  // below; the closures up to 1.56 at cos_o 0.95). Cause: the double-layer factors multiply a
-  // point's own backward and forward light R, T (lobes and residual) by rho_b = B_total / B_t
-  // and rho_f = F_total / F_t (Eq. S.21, S.22; raywave_bsdf.cpp prepare and eval_prepared,
-  // raywave_lobes.h's weights), ratios of layer averages: a point that scatters more backwards
-  // than the top layer on average leaves with more than it received. At the failing warp
-  // texel, R = 0.44 and T = 0.57 while the back table's top layer (the weft: double_layer.h,
-  // weft over warp from below) has B_t = 0.21, so rho_b = 1.98 and
-  // R rho_b + T rho_f (1 - s) + s F_total = 1.37 (speckle noise off; 1.28 with it). Adding the
-  // layers' extra light instead, R + T (B_total - B_t) / F_t backwards and T F_total / F_t
-  // forwards, keeps the averages and conserves energy at every point (1.00 there). Enable once
-  // the ray-wave evaluators conserve energy per point.
+TEST(Extremes, RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
+  // White yarns seen from below, where the double layer matters most. With Eq. S.21 and S.22
+  // as written (a point's own backward and forward light R, T times B_total / B_t and
+  // F_total / F_t, ratios of the top layer's averages) the model reached 1.29 at cos_o 1e-3 (1.57
+  // at cos_o 0.95, 2.2 at some texels; the closures up to 1.56): at one warp texel R = 0.44,
+  // T = 0.57, B_t = 0.21, so B_total / B_t = 1.98. The per-point factors of
+  // double_layer_factors.h (R + k_b T backwards, k_f T forwards) keep the layer totals and
+  // conserve energy at every point.
   expect_grazing_energy_conserved("raywave", "white");
+  // And away from grazing, where the old factors did worst (1.57 at cos_o 0.95 from below):
+  // 24 random texels, views at cos_o 0.95 and 0.5 from above and below, both evaluators. What the
+  // factors must do there: never give a point more than it scatters as one layer (k_b = 0,
+  // k_f = 1: R + T; per point R + k_b T + k_f T <= R + T). Compared with the speckle noise off:
+  // the noise scales each lobe by the tile at its direction (the closures: at its centre), which
+  // alone takes a point's energy up to 1.10 on this fabric (README, "Not yet"); and the fitted
+  // lobes plus the residual hold a little more than the simulation on some slices (asg_residual.h:
+  // lobes + residual >= data), up to 0.9 % here, as they do without the layers.
+  const auto a = loom::load_atlas(baked_white("raywave", false));
+  loom::RaywaveData d = loom::load_raywave(a);
+  d.noise.present = false;
+  loom::RaywaveData one = d;  // one layer: B_total = B_t, F_total = F_t
+  std::vector<loom::Image> keep;
+  keep.reserve(2);
+  for (int side = 0; side < 2; ++side) {
+    loom::Image& t = one.layers[side].table;
+    for (int y = 0; y < t.height; ++y)
+      for (int x = 0; x < t.width; ++x) {
+        t.px(x, y)[2] = t.px(x, y)[0];
+        t.px(x, y)[3] = t.px(x, y)[1];
+      }
+    std::array<double, 3> sig;
+    for (size_t c = 0; c < 3; ++c) sig[c] = 0.5 * (d.sigma_rgb[0][c] + d.sigma_rgb[1][c]);
+    keep.push_back(loom::layer_factors_image(one.layers[side], sig));
+    one.factors[side] = &keep.back();
+  }
+  std::mt19937 g(17);
+  std::uniform_real_distribution<float> u01(0, 1);
+  std::vector<loom::SurfacePoint> pts;
+  while (pts.size() < 24) {
+    const auto p = loom::sample_surface(a, u01(g), u01(g));
+    if (std::lround(p.kind) != 0) pts.push_back(p);
+  }
+  double worst = 0, most_added = -1;
+  for (double c : {0.95, 0.5})
+    for (double side : {1.0, -1.0})
+      for (auto e : {loom::Evaluator::Model, loom::Evaluator::Closures}) {
+        const double s = std::sqrt(1 - c * c);
+        const vec3 wo(float(0.6 * s), float(0.8 * s), float(side * c));
+        for (const auto& p : pts) {
+          auto energy = [&](const loom::RaywaveData& dd, int n) {
+            const loom::RaywavePoint pt(dd, p, wo, e, false);
+            return sphere_albedo([&](vec3 wi) { return double(pt.eval(wi)[1]); }, n);
+          };
+          const double two = energy(d, 96), two_coarse = energy(d, 48);
+          const double single = energy(one, 96), single_coarse = energy(one, 48);
+          const double tol = std::fabs(two - two_coarse) + std::fabs(single - single_coarse) + 1e-5;
+          EXPECT_LE(two, single + tol)
+              << (e == loom::Evaluator::Model ? "model" : "closures") << " cos_o " << c
+              << (side > 0 ? " above" : " below") << " at u " << p.u << " v " << p.v
+              << ": one layer " << single;
+          worst = std::max(worst, two);
+          most_added = std::max(most_added, two - single);
+        }
+      }
+  std::printf("white yarns, 24 texels at cos_o 0.95 and 0.5 (noise off): largest energy %.6f, "
+              "largest gain over one layer %.2e\n", worst, most_added);
 }
 
 TEST(Extremes, PlyFrameOfBakedTexelsIsTheirNormalisedVectors) {

@@ -251,25 +251,39 @@ TEST(RaywaveShading, DoubleLayerRenderTableFollowsItsSource) {
   for (float& v : g.table.data) v = u(r);
   const std::array<double, 3> sig = {0, 50, 1000};
   const loom::Image img = loom::layer_factors_image(g, sig);
-  auto ratio = [](double a, double b) { return float(std::clamp(a / b, 0.0, 10.0)); };
+  // double_layer_factors.h: k_b = (B_total - B_t) / F_t >= 0, k_f = F_total / F_t, both scaled
+  // to sum 1 where they sum to more (the random source often does).
+  auto factors = [](const loom::DoubleLayerFactors& f) {
+    double kb = std::max(0.0, (f.Btotal - f.Bt) / f.Ft), kf = f.Ftotal / f.Ft;
+    const double sum = kb + kf;
+    if (sum > 1) kb /= sum, kf /= sum;
+    return std::array<double, 2>{kb, kf};
+  };
+  int scaled = 0;
   for (int t = 0; t < 5; ++t)
     for (int p = 0; p < 8; ++p) {
       // At a bin centre the look-up is the source's factors at each channel's sigma.
       const double th = (t + 0.5) * 18 * M_PI / 180, ph = (p + 0.5) * 45 * M_PI / 180;
       const vec3 xi(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
                     float(std::cos(th)));
-      for (int b = 0; b < 3; ++b) {
+      std::array<float, 4> got[2];
+      for (int b = 0; b < 2; ++b) {
         float s, tv;
         sh::double_layer_uv(xi, b, 5, 8, s, tv);
-        const auto got = texture(img, s, tv);
+        got[b] = texture(img, s, tv);
         for (int c = 0; c < 3; ++c) {
           const auto f = loom::double_layer_at(g, xi, sig[size_t(c)]);
-          const float want = b == 0 ? ratio(f.Btotal, f.Bt)
-                                    : (b == 1 ? ratio(f.Ftotal, f.Ft) : float(f.Ftotal));
-          EXPECT_NEAR(got[size_t(c)], want, 1e-4f) << t << " " << p << " block " << b;
+          const auto want = factors(f);
+          EXPECT_NEAR(got[b][size_t(c)], want[size_t(b)], 1e-4f) << t << " " << p << " block " << b;
+          if (b == 0) scaled += (std::max(0.0, f.Btotal - f.Bt) + f.Ftotal) / f.Ft > 1;
         }
       }
+      for (int c = 0; c < 3; ++c) {  // per-point energy: R + (k_b + k_f) T <= R + T
+        EXPECT_GE(got[0][size_t(c)], 0.0f);
+        EXPECT_LE(got[0][size_t(c)] + got[1][size_t(c)], 1.0f + 1e-5f);
+      }
     }
+  EXPECT_GT(scaled, 10);  // the scaling to sum 1 is exercised
   // Across phi = 0 the look-up blends the last and the first bin (no wrap mode needed).
   for (int t = 0; t < 5; ++t) {
     const double th = (t + 0.5) * 18 * M_PI / 180;
@@ -278,7 +292,7 @@ TEST(RaywaveShading, DoubleLayerRenderTableFollowsItsSource) {
       const vec3 xi(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
                     float(std::cos(th)));
       float s, tv;
-      sh::double_layer_uv(xi, 2, 5, 8, s, tv);
+      sh::double_layer_uv(xi, 1, 5, 8, s, tv);
       return texture(img, s, tv)[1];
     };
     EXPECT_NEAR(at(0.0), 0.5f * (at(22.5) + at(337.5)), 1e-4f);
@@ -326,11 +340,16 @@ TEST(RaywaveShading, ResidualRenderTableFollowsItsSource) {
     }
   }
   // Weights (raywave_lobes.h) are the model's factors.
-  const vec3 e(0.2f, 0.3f, 0.4f), rho(1.5f, 1.0f, 0.5f);
-  const vec3 wd = sh::raywave_residual_diffuse_weight(e, 0.8f, 0.5f, rho);
-  const vec3 wt = sh::raywave_residual_translucent_weight(e, 0.8f, rho, 0.25f);
-  EXPECT_NEAR(wd.x, 0.8 * 0.5 * 1.5 * 0.2, 1e-6);
+  // (double_layer_factors.h: backward R + k_b T, forward k_f ((1 - s) own + s diffuse) T).
+  const vec3 e(0.2f, 0.3f, 0.4f), kf(0.9f, 0.7f, 0.5f), kb(0.1f, 0.2f, 0.3f), T(0.5f, 0.6f, 0.7f);
+  const vec3 wd = sh::raywave_residual_diffuse_weight(e, 0.8f, 0.5f);
+  const vec3 wt = sh::raywave_residual_translucent_weight(e, 0.8f, kf, 0.25f);
+  const vec3 ld = sh::raywave_layer_diffuse_weight(T, 0.8f, 0.5f, kb);
+  const vec3 lt = sh::raywave_layer_translucent_weight(T, 0.8f, kf, 0.25f);
+  EXPECT_NEAR(wd.x, 0.8 * 0.5 * 0.2, 1e-6);
   EXPECT_NEAR(wt.z, 0.8 * 0.75 * 0.5 * 0.4, 1e-6);
+  EXPECT_NEAR(ld.y, 0.8 * 0.5 * 0.2 * 0.6, 1e-6);
+  EXPECT_NEAR(lt.z, 0.8 * 0.25 * 0.5 * 0.7, 1e-6);
 }
 
 TEST(RaywaveShading, DegenerateInputsGiveFiniteClosures) {
@@ -394,22 +413,33 @@ TEST(RaywaveShading, SwitchesBakeOnlyWhatIsAsked) {
   const loom::RaywaveData data = loom::load_raywave(a);
   EXPECT_EQ(data.blend, 0.0);
   EXPECT_FALSE(data.diffraction.present);
+  // One layer: k_b = 0 (block 0), k_f = 1 (block 1) everywhere (double_layer_factors.h).
   for (int side = 0; side < 2; ++side) {
     const loom::Image& f = *data.factors[side];
-    for (size_t i = 0; i < f.data.size(); ++i) ASSERT_EQ(f.data[i], 1.0f) << side << " " << i;
+    ASSERT_EQ(f.width % 2, 0);
+    for (int y = 0; y < f.height; ++y)
+      for (int x = 0; x < f.width; ++x)
+        for (int c = 0; c < f.channels; ++c)
+          ASSERT_EQ(f.px(x, y)[c], x < f.width / 2 ? 0.0f : 1.0f) << side << " " << x << " " << y;
   }
-  // In the mixture the diffuse forward part of Eq. S.22 (the translucent closure just before
-  // the residual's diffuse one, raywave_bsdf.cpp) has weight open s F_total = 0.
+  // In the mixture the layers' light from T (the first two closures after the lobes': the
+  // diffuse BTDF of Eq. S.22, weight open s k_f T, and the light returned backwards, open vis_v
+  // k_b T; raywave_bsdf.cpp) has weight 0.
   const loom::SurfacePoint p = loom::sample_surface(a, 0.3f, 0.6f);
   ASSERT_LT(p.gap, 1.0f);
   const loom::RaywavePoint pc(data, p, sh::normalize(vec3(0.1f, 0.2f, 0.97f)),
                               loom::Evaluator::Closures);
   const auto& list = pc.closures();
-  size_t res = 0;
-  while (res < list.size() && list[res].kind != 3) ++res;
-  ASSERT_TRUE(res > 0 && res < list.size());
-  EXPECT_EQ(list[res - 1].kind, 1);
-  for (int c = 0; c < 3; ++c) EXPECT_EQ(list[res - 1].weight[size_t(c)], 0.0f);
+  size_t nl = 0;
+  while (nl < list.size() && list[nl].lobe >= 0) ++nl;
+  ASSERT_GT(nl, 0u);
+  ASSERT_LT(nl + 1, list.size());
+  EXPECT_EQ(list[nl].kind, 1);
+  EXPECT_EQ(list[nl + 1].kind, 3);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(list[nl].weight[size_t(c)], 0.0f);
+    EXPECT_EQ(list[nl + 1].weight[size_t(c)], 0.0f);
+  }
 }
 
 namespace loom::test {
@@ -434,10 +464,13 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
                   e == loom::Evaluator::Model ? "model" : "closures");
       EXPECT_NEAR(a, b, 0.1 * b);
     }
-    // The mapping by kind of closure: the residual and the double layer's diffuse part are the
-    // same Lambertian lobes on both sides (exact, up to the render table's ratio B_total / B_t
-    // interpolated as a ratio where the model takes the ratio of interpolated factors: 1e-3);
-    // the lobes' kinds carry the error.
+    // The mapping by kind of closure: the residual is the same Lambertian lobes on both sides
+    // (exact, up to the render table's factor k_f interpolated as a factor where the model takes
+    // the factor of interpolated values: 1e-3); the lobes' kinds carry the error. The layers'
+    // light from T (double_layer_factors.h) is Lambertian on both sides too, and differs only in
+    // T: the model splits each lobe at the cloth's plane (asg_side_fraction), the closures by
+    // the lobe's reflection share: measured 0.016 on this twill, and 0.088 with the forward
+    // residual left out of the closures' T.
     const auto bk = loom::raywave_mapping_by_kind(atlas, d, 16, 8, 48);
     std::printf("mapping by kind: reflection %.3f (%d), refraction %.3f (%d), translucent %.3f "
                 "(%d), residual %.2g, layer diffuse %.2g\n", bk.reflection.mean_l1,
@@ -446,7 +479,7 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
                 bk.layer_diffuse.mean_l1);
     EXPECT_GT(bk.residual.views, 0);
     EXPECT_LT(bk.residual.mean_l1, 1e-2);
-    EXPECT_LT(bk.layer_diffuse.mean_l1, 1e-4);
+    EXPECT_LT(bk.layer_diffuse.mean_l1, 0.05);
     EXPECT_GT(bk.reflection.views, 0);
     EXPECT_LT(bk.reflection.mean_l1, 1.0);
     // ... and it does change single texels' closure weights.

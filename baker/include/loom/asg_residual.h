@@ -33,7 +33,11 @@
 
 namespace loom {
 
-/// The fraction of lobe q's integral on the backward side (y > 0) of the ply.
+/// The fraction of lobe q's integral on the side v.n > 0 of the plane through the origin with
+/// normal n (ply space, unit), by the method above with `steps` polar nodes.
+double asg_side_fraction(const AsgLobe& q, const Vec3d& n, int steps);
+
+/// The fraction of lobe q's integral on the backward side (y > 0) of the ply (2048 nodes).
 double asg_backward_fraction(const AsgLobe& q);
 
 /// The residual of table t against the data it was fitted to (f_refl if refl, else f_high at

@@ -8,12 +8,15 @@
 // (tangent frame, unit): by reciprocity the camera ray is the simulation's beam, and the ply
 // scattering density f (fraction of the beam's power per steradian) is that quantity directly
 // (raywave_lobes.h). At a point of the surface maps:
-//   f = (1 - c) [ B_total/B_t V(wo) V(wi) (f_refl + f_high)           wi on the viewer's side
-//               [ (1 - s) F_total/F_t (f_refl + f_high) + s F_total |wi.z| / pi   far side
+//   f = (1 - c) [ V(wo) (V(wi) (f_refl + f_high) + (R_res + k_b T) |wi.z| / pi)   viewer's side
+//               [ k_f ((1 - s) (f_refl + f_high + T_res |wi.z| / pi) + s T |wi.z| / pi)  far side
 // with c the gap coverage (the open gap is a delta transmission, not part of f), V the horizon
 // visibility (front side only, as in the surface tier), f_refl and f_high the fitted lobes at
-// (theta_i, h) of the ply space and the yarn's per-channel absorption sigma_c (S.8, S.12), and
-// the double-layer factors of Eq. S.21 and S.22 at xi = wo for the channel's absorption.
+// (theta_i, h) of the ply space and the yarn's per-channel absorption sigma_c (S.8, S.12),
+// R_res, T_res the energy residual (asg_residual.h), T the point's forward light (the lobes'
+// energy below the cloth's plane, asg_side_fraction, plus T_res), and k_b, k_f the per-point
+// double-layer factors (double_layer_factors.h: Eq. S.20-S.22 made energy-conserving) at
+// xi = wo for the channel's absorption.
 //
 // Not yet modelled at render time (the atlas holds the tables; the next slices of the shading
 // issue use them): aperture diffraction through gaps and past ply edges (the gap is a delta
@@ -32,6 +35,11 @@
 #include "loom/ply_tables.h"
 
 namespace loom {
+
+/// The layer_factors tables' contents (manifest raywave.shading.factors_layout): the per-point
+/// factors k_b, k_f of double_layer_factors.h. Atlases with other factors (the ratios
+/// B_total / B_t, F_total / F_t, F_total of older bakers) are refused with a re-bake message.
+inline constexpr const char* kLayerFactorsLayout = "k_b,k_f";
 
 /// Render tables baked at the yarn colours (layouts in the shared headers).
 /// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high at sigma_rgb, per corner node in the
@@ -54,7 +62,7 @@ struct DoubleLayerGrid {
 /// the (theta, phi) bin centres (phi periodic, theta clamped), between levels by sigma_interval.
 DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const shading::vec3& xi,
                                    double sigma);
-/// layer_factors_<side>: the three RGB blocks of double_layer_factors.h at sigma_rgb.
+/// layer_factors_<side>: the two RGB blocks (k_b, k_f) of double_layer_factors.h at sigma_rgb.
 Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb);
 
 /// The microfacet albedo LUT (raywave_lobes.h): E(cos(N, V), alpha) of Cycles' isotropic Beckmann
@@ -158,8 +166,9 @@ DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, shading::
 /// The closure-mapping error by kind of closure: for each of the fitted lobes the shaders turn
 /// into a Beckmann reflection (kind 0), a Beckmann refraction (2) or a translucent closure (1),
 /// the lobes of that kind together (their model, with the factors that multiply them, against
-/// their closures), and the energy residual and the double layer's diffuse part (both exact
-/// by construction, a check). Same texels, views and sphere as raywave_mapping_error.
+/// their closures), the energy residual (exact by construction, a check) and the layers' light
+/// from the point's forward light T (double_layer_factors.h: the model's T splits each lobe at
+/// the cloth's plane, the closures' by its share raywave_reflection_share). Same texels, views and sphere as raywave_mapping_error.
 struct MappingByKind {
   MappingError reflection, refraction, translucent, residual, layer_diffuse;
 };

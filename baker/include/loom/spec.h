@@ -72,7 +72,8 @@ struct ComponentSpec {
   /// treats the yarn's plies as one ply (the supplement's "multi-ply off").
   bool multi_ply = true;
   /// Ray-wave tier: double-layer scattering (Eq. S.20-S.22); false bakes no double-layer
-  /// factors and renders one layer (B_total / B_t = F_total / F_t = 1, no diffuse part).
+  /// factors and renders one layer (k_b = 0, k_f = 1 in double_layer_factors.h, no diffuse
+  /// part).
   bool double_layer = true;
 };
 

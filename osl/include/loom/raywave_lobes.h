@@ -1,7 +1,7 @@
 // The ray-wave model at a shading point (ray-wave supplement sections 1 and 3): from the surface
 // maps and the view direction to the ply space of the simulation, the atlas coordinates of the
-// fitted ASG lobes (S.6, S.7, S.11) and of the double-layer factors (S.21, S.22), and each lobe's
-// Cycles closure.
+// fitted ASG lobes (S.6, S.7, S.11) and of the double-layer factors (S.20-S.22, made per point:
+// double_layer_factors.h), and each lobe's Cycles closure.
 //
 // Ply space is the simulation's (baker/include/loom/ply_scattering.h): the ply runs along +z, the
 // beam comes from omega_i = (0, cos theta_i, sin theta_i), h is its offset along +x in ply radii.
@@ -60,8 +60,8 @@
 //   * the energy residual (baker/include/loom/asg_residual.h: what the fitted lobes miss of the
 //     simulated energy, backward and forward in the ply's cross-section) at the yarn's absorption
 //     (`ply_residual_<yarn>`, read bilinearly between slices): backward energy E_b as
-//     diffuse(n_s) with weight open vis_v rho_b E_b, forward energy E_f as translucent(n_s) with
-//     weight open (1 - s) rho_f E_f. The model is the same (a Lambertian lobe of albedo E on each
+//     diffuse(n_s) with weight open vis_v E_b, forward energy E_f as translucent(n_s) with
+//     weight open (1 - s) k_f E_f (double_layer_factors.h). The model is the same (a Lambertian lobe of albedo E on each
 //     side, f cos = E |cos| / pi), so this part maps without error. Choice: no horizon term for
 //     the light direction (the residual is light spread by many fibres; vis_v still applies).
 #ifndef LOOM_RAYWAVE_LOBES_H
@@ -326,32 +326,37 @@ LOOM_FN float raywave_lobe_visibility(vector z, float hor[LOOM_HORIZON_DIRS]) {
 
 /// Colour weight of a lobe's closure: its integral (asg_integral(mu1, mu2, c)) over the closure's
 /// albedo E (ignored for translucent), times the per-channel tint (Eq. S.11), the open fraction,
-/// and the double-layer factors (Eq. S.21 for reflection, (1 - s) F_total / F_t of Eq. S.22 for
-/// forward lobes) and, for reflection, the view- and light-side visibilities.
+/// for reflection the view- and light-side visibilities, for forward lobes (1 - s) k_f, the
+/// directional part of Eq. S.22 with the per-point factor of double_layer_factors.h.
 LOOM_FN color raywave_lobe_weight(int kind, float integral, float albedo, color tint, float open,
-                                  float vis_v, float vis_z, color rho_b, color rho_f, float s) {
+                                  float vis_v, float vis_z, color k_f, float s) {
   if (kind == 0)
-    return asg_microfacet_weight(integral, albedo) * open * vis_v * vis_z * tint * rho_b;
+    return asg_microfacet_weight(integral, albedo) * open * vis_v * vis_z * tint;
   float w = integral;
   if (kind == 2)
     w = asg_microfacet_weight(integral, albedo);
-  return w * open * (1.0 - s) * tint * rho_f;
+  return w * open * (1.0 - s) * tint * k_f;
 }
 
 /// Colour weights of a lobe's three closures (raywave_lobe_closures): raywave_lobe_weight of each
 /// kind times its share; albedo_r and albedo_t are the reflection and the refraction closure's
 /// albedos E (channels 0 and 1 of the LUT at their own cos(N, V) and roughness).
 LOOM_FN void raywave_lobe_weights(float integral, float albedo_r, float albedo_t, color tint,
-                                  float open, float vis_v, float vis_z, color rho_b, color rho_f,
-                                  float s, float b_refl, float b_refr, LOOM_OUT(color) w_refl,
+                                  float open, float vis_v, float vis_z, color k_f, float s,
+                                  float b_refl, float b_refr, LOOM_OUT(color) w_refl,
                                   LOOM_OUT(color) w_refr, LOOM_OUT(color) w_transl) {
-  w_refl = b_refl * raywave_lobe_weight(0, integral, albedo_r, tint, open, vis_v, vis_z, rho_b,
-                                        rho_f, s);
-  color w_fwd = raywave_lobe_weight(1, integral, albedo_t, tint, open, vis_v, vis_z, rho_b,
-                                    rho_f, s);
+  w_refl = b_refl * raywave_lobe_weight(0, integral, albedo_r, tint, open, vis_v, vis_z, k_f, s);
+  color w_fwd = raywave_lobe_weight(1, integral, albedo_t, tint, open, vis_v, vis_z, k_f, s);
   w_refr = ((1.0 - b_refl) * b_refr) *
-           raywave_lobe_weight(2, integral, albedo_t, tint, open, vis_v, vis_z, rho_b, rho_f, s);
+           raywave_lobe_weight(2, integral, albedo_t, tint, open, vis_v, vis_z, k_f, s);
   w_transl = ((1.0 - b_refl) * (1.0 - b_refr)) * w_fwd;
+}
+
+/// A lobe's part of the point's forward light T (double_layer_factors.h), before the layers'
+/// factors: the energy its far-side closures carry, integral (1 - b_refl) tint (the speckle
+/// noise left out: T feeds the layers' diffuse light, an incoherent sum).
+LOOM_FN color raywave_lobe_forward(float integral, color tint, float b_refl) {
+  return (integral * (1.0 - b_refl)) * tint;
 }
 
 /// Look-up coordinates of the energy residual (`ply_residual_<yarn>`, header comment) of the slice
@@ -367,13 +372,26 @@ LOOM_FN void raywave_residual_uv(float theta_i, float h, float theta_lo, float t
 }
 
 /// Weight of the diffuse closure carrying the backward residual e_b (header comment).
-LOOM_FN color raywave_residual_diffuse_weight(color e_b, float open, float vis_v, color rho_b) {
-  return open * vis_v * rho_b * e_b;
+LOOM_FN color raywave_residual_diffuse_weight(color e_b, float open, float vis_v) {
+  return open * vis_v * e_b;
 }
 
-/// Weight of the translucent closure carrying the forward residual e_f (header comment).
-LOOM_FN color raywave_residual_translucent_weight(color e_f, float open, color rho_f, float s) {
-  return open * (1.0 - s) * rho_f * e_f;
+/// Weight of the translucent closure carrying the forward residual e_f (header comment): the
+/// directional share (1 - s) k_f of Eq. S.22, as the forward lobes.
+LOOM_FN color raywave_residual_translucent_weight(color e_f, float open, color k_f, float s) {
+  return open * (1.0 - s) * k_f * e_f;
+}
+
+/// Weight of the diffuse closure carrying the light the layers below return, k_b T
+/// (double_layer_factors.h; t_fwd = T, the lobes' raywave_lobe_forward plus e_f).
+LOOM_FN color raywave_layer_diffuse_weight(color t_fwd, float open, float vis_v, color k_b) {
+  return open * vis_v * k_b * t_fwd;
+}
+
+/// Weight of the translucent closure carrying the diffuse BTDF of Eq. S.22, s k_f T
+/// (double_layer_factors.h).
+LOOM_FN color raywave_layer_translucent_weight(color t_fwd, float open, color k_f, float s) {
+  return open * s * k_f * t_fwd;
 }
 
 #endif
