@@ -181,6 +181,24 @@ TEST(AtlasCli, InspectAndEval) {
   fs::remove(bad / "horizon_0.exr");
   EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + bad.string() + " 2>&1", &text), 3);
   EXPECT_NE(text.find("horizon_0.exr is missing"), std::string::npos) << text;
+  // Summary fields that validation does not require (the evaluators do not read them) may be
+  // missing or of another type: inspect still summarises, naming what is absent (it threw a
+  // JSON type_error, exit 1, before).
+  auto bare = copy_atlas("inspect_bare.atlas");
+  edit_manifest(bare, [](json& m) {
+    m["spec"].erase("name");
+    m["quality"] = 3;
+    m.erase("repeat");
+  });
+  ASSERT_TRUE(loom::validate_atlas(bare).empty());
+  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + bare.string() + " 2>&1", &text), 0);
+  EXPECT_NE(text.find("(no spec.name)"), std::string::npos) << text;
+  EXPECT_NE(text.find("(no repeat.warp_yarns)"), std::string::npos) << text;
+  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect --json " + bare.string(), &text), 0);
+  const json bare_summary = json::parse(text);
+  EXPECT_TRUE(bare_summary["name"].is_null());
+  EXPECT_TRUE(bare_summary["repeat"].is_null());
+  EXPECT_EQ(bare_summary["quality"], 3);
 }
 
 TEST(Evaluators, SampleAtTexelCentreIsTheTexel) {
