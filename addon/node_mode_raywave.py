@@ -80,7 +80,7 @@ TRANSCRIBED_FROM = {
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "d152c6880a78d58a",
+    "loom_cloth_raywave.osl": "4c54f8d159146723",
 }
 
 

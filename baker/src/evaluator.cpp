@@ -64,26 +64,14 @@ const char* kMaps[] = {"ply_frame",   "ply_normal",      "yarn_info", "albedo_re
 }  // namespace
 
 SurfacePoint guard_surface_point(const SurfacePoint& in) {
-  // Ranges: what the baker writes (ply_maps.cpp) within the spec's own limits (spec.cpp):
-  // roughness 0.001-1, optical thickness 0.01-100 (Inf: the thickest slab the model takes),
-  // IOR 1-3, albedos, gap and blend 0-1, h -1..1, yarn kind 0 (gap) to 2 (weft), horizon sines.
+  // The ranges live in texel_guard.h, whose functions the shaders apply too.
   SurfacePoint p = in;
-  texel_guard_frame(p.t, p.n_p);
-  p.h = texel_guard(p.h, -1, 1, 0);
-  p.height = texel_guard(p.height, -1e6f, 1e6f, 0);
-  p.kind = texel_guard(p.kind, 0, 2, 0);
-  p.along = texel_guard(p.along, 0, 1, 0);
-  p.ply_id = texel_guard(p.ply_id, 0, 1, 0);
-  p.gap = texel_guard(p.gap, 0, 1, 0);
-  p.k_rd = texel_guard_color(p.k_rd, 0, 1, 0);
-  p.k_td = texel_guard_color(p.k_td, 0, 1, 0);
-  p.k_rs = texel_guard(p.k_rs, 0, 1, 0);
-  p.k_ts = texel_guard(p.k_ts, 0, 1, 0);
-  p.roughness = texel_guard(p.roughness, 0.001f, 1, 0.25f);
-  p.thickness = texel_guard(p.thickness, 0, 1e4f, 1);
-  p.blend = texel_guard(p.blend, 0, 1, 0.5f);
-  p.ior = texel_guard(p.ior, 1, 3, 1.5f);
-  for (float& s : p.horizon) s = texel_guard(s, -1, 1, 0);
+  vec3 info(p.kind, p.along, p.ply_id), params(p.roughness, p.thickness, p.blend);
+  texel_guard_geometry(p.t, p.height, p.n_p, p.h, info, p.gap);
+  texel_guard_optics(p.k_rd, p.k_rs, p.k_td, p.k_ts, params, p.ior);
+  p.kind = info[0], p.along = info[1], p.ply_id = info[2];
+  p.roughness = params[0], p.thickness = params[1], p.blend = params[2];
+  for (float& s : p.horizon) s = texel_guard_horizon(s);
   p.u = std::isfinite(p.u) ? p.u - std::floor(p.u) : 0.0f;
   p.v = std::isfinite(p.v) ? p.v - std::floor(p.v) : 0.0f;
   p.du = texel_guard(p.du, 0, 1, 0);

@@ -11,6 +11,7 @@
 //     tangent perpendicular to it; otherwise both are only normalised, as before.
 #ifndef LOOM_TEXEL_GUARD_H
 #define LOOM_TEXEL_GUARD_H
+#include "osl_compat.h"
 
 /// x in [lo, hi]; NaN gives `fallback`.
 LOOM_FN float texel_guard(float x, float lo, float hi, float fallback) {
@@ -57,6 +58,41 @@ LOOM_FN void texel_guard_frame(LOOM_OUT(vector) t, LOOM_OUT(vector) n) {
   }
   t = tt;
   n = nn;
+}
+
+/// One horizon sine (visibility.h) in [-1, 1]; NaN gives 0 (the horizon of a flat cloth).
+LOOM_FN float texel_guard_horizon(float s) { return texel_guard(s, -1.0, 1.0, 0.0); }
+
+/// The geometry texels as both shaders read them, colour and alpha of each map of the manifest:
+/// ply_frame (t, height), ply_normal (n, h), yarn_info (kind, along, ply_id; gap). Ranges: what
+/// the baker writes (ply_maps.cpp): yarn kind 0 (gap) to 2 (weft), along, ply id and gap 0-1,
+/// h -1..1, height +-1e6 (NaN: 0). The frame: texel_guard_frame on the raw stored vectors.
+/// Horizon sines: texel_guard_horizon.
+LOOM_FN void texel_guard_geometry(LOOM_OUT(vector) t, LOOM_OUT(float) height, LOOM_OUT(vector) n,
+                                  LOOM_OUT(float) h, LOOM_OUT(color) info, LOOM_OUT(float) gap) {
+  texel_guard_frame(t, n);
+  height = texel_guard(height, -1e6, 1e6, 0.0);
+  h = texel_guard(h, -1.0, 1.0, 0.0);
+  info = color(texel_guard(info[0], 0.0, 2.0, 0.0), texel_guard(info[1], 0.0, 1.0, 0.0),
+               texel_guard(info[2], 0.0, 1.0, 0.0));
+  gap = texel_guard(gap, 0.0, 1.0, 0.0);
+}
+
+/// The surface tier's optical texels: albedo_reflect (k_rd; k_rs), albedo_transmit (k_td; k_ts),
+/// spec_params (roughness, optical thickness, blend; ior). Ranges: the spec's limits (spec.cpp)
+/// as ply_maps.cpp writes them: albedos 0-1, roughness 0.001-1 (NaN: 0.25), optical thickness
+/// 0-1e4 (+Inf: the thickest slab the model takes; NaN: 1), blend 0-1 (NaN: 0.5), IOR 1-3
+/// (NaN: 1.5).
+LOOM_FN void texel_guard_optics(LOOM_OUT(color) k_rd, LOOM_OUT(float) k_rs, LOOM_OUT(color) k_td,
+                                LOOM_OUT(float) k_ts, LOOM_OUT(color) params,
+                                LOOM_OUT(float) ior) {
+  k_rd = texel_guard_color(k_rd, 0.0, 1.0, 0.0);
+  k_rs = texel_guard(k_rs, 0.0, 1.0, 0.0);
+  k_td = texel_guard_color(k_td, 0.0, 1.0, 0.0);
+  k_ts = texel_guard(k_ts, 0.0, 1.0, 0.0);
+  params = color(texel_guard(params[0], 0.001, 1.0, 0.25), texel_guard(params[1], 0.0, 1e4, 1.0),
+                 texel_guard(params[2], 0.0, 1.0, 0.5));
+  ior = texel_guard(ior, 1.0, 3.0, 1.5);
 }
 
 #endif  // LOOM_TEXEL_GUARD_H
