@@ -92,8 +92,9 @@ std::vector<double> asg_fit_residual(const PlySimResult& sim, const AsgTable& t,
         ply_sim_side_energy(sim.settings, refl ? sl.refl.data() : sl.high.data() + k * bins, db,
                             df);
         double* r = &out[((m * N + n) * K + k) * 2];
-        r[0] = std::max(0.0, db - fb);
-        r[1] = std::max(0.0, df - ff);
+        const double over_b = std::max(0.0, fb - db), over_f = std::max(0.0, ff - df);
+        r[0] = std::max(0.0, db - fb - over_f);
+        r[1] = std::max(0.0, df - ff - over_b);
       }
     }
   return out;

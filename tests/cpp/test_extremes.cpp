@@ -448,9 +448,9 @@ TEST(Extremes, RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
   // factors must do there: never give a point more than it scatters as one layer (k_b = 0,
   // k_f = 1: R + T; per point R + k_b T + k_f T <= R + T). Compared with the speckle noise off:
   // the noise scales each lobe by the tile at its direction (the closures: at its centre), which
-  // alone takes a point's energy up to 1.10 on this fabric (README, "Not yet"); and the fitted
-  // lobes plus the residual hold a little more than the simulation on some slices (asg_residual.h:
-  // lobes + residual >= data), up to 0.9 % here, as they do without the layers.
+  // alone takes a point's energy up to 1.10 on this fabric (README, "Not yet"); and a few points
+  // scatter a little more than they receive even with the noise off, up to 0.9 % here (README,
+  // "Not yet"), as they do without the layers.
   const auto a = loom::load_atlas(baked_white("raywave", false));
   loom::RaywaveData d = loom::load_raywave(a);
   d.noise.present = false;

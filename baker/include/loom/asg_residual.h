@@ -7,14 +7,19 @@
 // 0.96), so cloth came out far too dark. The supplement keeps the energy of multi-ply scattering
 // with a diffuse residual band (S.15-S.18); Loom does the same for the fit:
 //
-//   R_side(m, n, k) = max(0, E_side(data) - E_side(lobes))
+//   R_side(m, n, k) = max(0, E_side(data) - E_side(lobes) - O_other),
+//   O_other = max(0, E_other(lobes) - E_other(data))
 //
 // with E_side the energy a slice sends to the backward side of the ply (towards the source in
 // the ply's cross-section, y > 0 in ply space, as AsgFitSettings::split_sides) or the forward
 // side (y < 0): the data's by summing bins (the bins of ply_sim_bin_direction split exactly at
 // y = 0), the lobes' as asg_integral times the fraction of the lobe on that side. Choices:
-//  * A side where the lobes overshoot gets no residual (energy is never taken away), so
-//    lobes + residual >= data on each side, with equality where the fit falls short.
+//  * A side where the lobes overshoot gets no residual (energy is never taken away from the
+//    lobes), and what they overshoot by is left out of the other side's residual: the slice's
+//    energy, lobes + residual over both sides, is then max(E(data), E(lobes)), the simulated
+//    energy wherever the lobes hold no more than it. Per side, lobes + residual = data where
+//    neither side overshoots. (Before, each side was filled on its own: a fit that put 1 % too
+//    much backwards and 1 % too little forwards scattered 1 % more than the ply did.)
 //  * The fraction is integrated in the lobe's own frame, over the disk of asg.h's integral in
 //    polar coordinates: along each ray of the disk the side changes at most once, where
 //    v.y = 0, so the radial integral of each side is in closed form and only the polar angle is
