@@ -56,10 +56,12 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO
 # whitespace ignored) at the time of the transcription. tests/blender/test_transcription.py
 # fails when a source's code changes: read the diff, update the transcription below, run
 # tests/blender/test_parity.py, then record the new fingerprints here.
-# Not transcribed (not yet): the shaders' texel_guard.h calls. Every texel the baker writes is in
-# range (Extremes.TexelGuardKeepsEveryBakedTexel), so this differs only on an atlas edited after
-# the bake: there a texel out of range (NaN included) reaches node mode's math as it is, where the
-# OSL shaders and the C++ evaluators bring it back into range first.
+# Not transcribed (not yet): the shaders' texel_guard.h calls (also for node_mode_raywave).
+# Every texel the baker writes is in range (Extremes.TexelGuardKeepsEveryBakedTexel, with C++
+# bilinear sampling), so this matters wherever a texel or a filtered mix of texels falls outside
+# the baker's ranges (an atlas edited or decoded wrongly, NaN): there node mode's math reads it
+# as it is (but for the gap, which node_mode_raywave clamps), where the OSL shaders and the C++
+# evaluators bring it back into range first.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "c45bf04a19424a79",
     "include/loom/visibility.h": "748a60042d62eda6",

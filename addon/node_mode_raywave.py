@@ -72,7 +72,7 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_DOUBLE_LAYER_BLOCKS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
-# checks both).
+# checks both). Not transcribed: texel_guard.h (node_mode.py says why).
 TRANSCRIBED_FROM = {
     "include/loom/raywave_lobes.h": "b2296fd382f159b2",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",

@@ -44,7 +44,8 @@ TIERS = ("surface", "raywave")
 
 
 def parse(argv):
-    p = argparse.ArgumentParser(prog="scripts/trade.sh", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="scripts/trade.sh", description=__doc__.split("\n")[0],
+                                allow_abbrev=False)
     p.add_argument("--fabrics", default=",".join(WEAVES + SAMPLES),
                    help="comma-separated weave presets and sample fabrics (default: all 11)")
     p.add_argument("--tiers", default=",".join(TIERS), help="surface,raywave")
@@ -66,6 +67,9 @@ def parse(argv):
     p.add_argument("--resume", action="store_true",
                    help="keep the fabrics and tiers an earlier run with the same settings and "
                         "the same loom-bake binary measured (DIR/done.json) and measure the rest")
+    p.add_argument("--merge", default=None, metavar="DIR,DIR",
+                   help="measure nothing: join the rows earlier runs kept in DIR/done.json "
+                        "(same settings; the baker may differ, each is named) into --out")
     p.add_argument("--bake", default=os.path.join(ROOT, "build", "loom-bake"))
     p.add_argument("--out", default=os.path.join(ROOT, "out", "trade"))
     a = p.parse_args(argv)
@@ -102,6 +106,21 @@ def parse(argv):
             p.error(f"--lobes: expected FABRIC:QUALITY:THETA_I_DEG:H:SIGMA with a weave preset or "
                     f"sample fabric, a quality preset, theta_i in [-90, 90], h in [-1, 1], sigma in "
                     f"[0, 1e6] (1/mm), or 'none'; got {a.lobes!r}")
+    if a.merge is not None:
+        a.merge = [d for d in a.merge.split(",") if d]
+        if not a.merge:
+            p.error("--merge: name at least one directory holding a done.json")
+        measuring = [o for o in ("--fabrics", "--tiers", "--raywave-fabrics", "--qualities",
+                                 "--runs", "--samples", "--res", "--repeats", "--light",
+                                 "--no-render", "--lobes", "--resume")
+                     if any(x == o or x.startswith(o + "=") for x in argv)]
+        if measuring:
+            p.error(f"--merge measures nothing; {', '.join(measuring)} would be ignored (the "
+                    "settings are the merged runs' own)")
+        out = os.path.realpath(a.out)
+        for d in a.merge:
+            if os.path.realpath(d) == out:
+                p.error(f"--merge: --out {a.out} is one of the merged runs; write elsewhere")
     if "reference" not in a.qualities:
         a.qualities.append("reference")
     a.qualities = [q for q in QUALITIES if q in a.qualities]
@@ -207,8 +226,68 @@ def save_done(args, key, rows):
     path = os.path.join(args.out, "done.json")
     tmp = path + ".tmp"
     with open(tmp, "w", encoding="utf-8") as f:
-        json.dump({"settings": key, "rows": rows}, f, indent=1)
+        json.dump({"settings": key, "cores": os.cpu_count(), "date": time.strftime("%Y-%m-%d"),
+                   "rows": rows}, f, indent=1)
     os.replace(tmp, path)
+
+
+def merge(args):
+    """Rows of the earlier runs in args.merge, joined (--merge). Their measuring settings must
+    agree (the rows are then comparable); each run's baker is recorded as a source. The settings
+    and the tiers of args become the runs' own. Raises SystemExit naming what does not fit,
+    before anything is written."""
+    rows, sources, settings = [], [], None
+    fields = ("runs", "samples", "res", "repeats", "light", "rendered", "qualities",
+              "loom_bake_sha256")
+    for d in args.merge:
+        path = os.path.join(d, "done.json")
+        bad = f"loom-trade: --merge: {path} is not a trade run's done.json"
+        try:
+            with open(path, encoding="utf-8") as f:
+                done = json.load(f)
+        except (OSError, ValueError) as exc:
+            raise SystemExit(f"{bad} ({exc})")
+        if not isinstance(done, dict) or not isinstance(done.get("settings"), dict) \
+                or not isinstance(done.get("rows"), list):
+            raise SystemExit(f"{bad} (expected an object with \"settings\" and \"rows\")")
+        key = dict(done["settings"])
+        missing = [k for k in fields if k not in key]
+        if missing:
+            raise SystemExit(f"{bad} (settings lack {', '.join(missing)})")
+        sha = key.pop("loom_bake_sha256")
+        if not isinstance(sha, str) or not isinstance(key["qualities"], list) \
+                or any(q not in QUALITIES for q in key["qualities"]):
+            raise SystemExit(f"{bad} (settings.loom_bake_sha256 must be a string and "
+                             f"settings.qualities a list of {', '.join(QUALITIES)})")
+        got = done["rows"]
+        for i, r in enumerate(got):
+            if not isinstance(r, dict) or r.get("fabric") not in WEAVES + SAMPLES \
+                    or r.get("tier") not in TIERS or r.get("quality") not in QUALITIES:
+                raise SystemExit(f"{bad} (rows[{i}] needs a known fabric, tier "
+                                 f"({', '.join(TIERS)}) and quality ({', '.join(QUALITIES)}))")
+        if settings is None:
+            settings = key
+        elif key != settings:
+            diff = sorted(k for k in set(key) | set(settings) if key.get(k) != settings.get(k))
+            raise SystemExit(f"loom-trade: --merge: {path} was measured with other settings than "
+                             f"{args.merge[0]} ({', '.join(diff)} differ)")
+        have = {(r["fabric"], r["tier"]) for r in rows}
+        pairs = sorted({(r["fabric"], r["tier"]) for r in got})
+        twice = [f"{f} ({t})" for f, t in pairs if (f, t) in have]
+        if twice:
+            raise SystemExit(f"loom-trade: --merge: {path} measures {', '.join(twice)} again")
+        rows += got
+        sources.append({"dir": os.path.abspath(d), "loom_bake_sha256": sha,
+                        "cores": done.get("cores"), "date": done.get("date"),
+                        "pairs": [f"{f} ({t})" for f, t in pairs]})
+    args.runs, args.samples, args.res = settings["runs"], settings["samples"], settings["res"]
+    args.repeats, args.light = settings["repeats"], settings["light"]
+    args.no_render = not settings["rendered"]
+    args.qualities = list(settings["qualities"])
+    args.tiers = [t for t in TIERS if any(r["tier"] == t for r in rows)]
+    args.lobes = "none"  # the lobe plot needs an atlas; each run wrote its own
+    args.sources = sources
+    return rows
 
 
 def measure(args):
@@ -316,6 +395,9 @@ def write_outputs(rows, args):
     meta = {"date": time.strftime("%Y-%m-%d"), "cores": os.cpu_count(), "runs": args.runs,
             "samples": args.samples, "res": args.res, "repeats": args.repeats,
             "light": args.light, "rendered": not args.no_render}
+    if getattr(args, "sources", None):
+        meta["sources"] = args.sources
+        del meta["cores"]  # each source's own
     with open(os.path.join(args.out, "trade.json"), "w", encoding="utf-8") as f:
         json.dump({"settings": meta, "rows": rows, "summary": summ}, f, indent=1)
     cols = ("tier", "quality", "fabrics", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
@@ -323,14 +405,24 @@ def write_outputs(rows, args):
     heads = ("tier", "preset", "fabrics", "bake s", "peak RSS MiB", "atlas MiB",
              "render / Principled", "BSDF rel. L1 vs ref.", "image rel. RMSE vs ref.",
              "reference, other seed", "mapping rel. L1")
-    md = [f"# Loom's speed/accuracy trade ({meta['date']}, {meta['cores']} cores)", "",
+    sources = getattr(args, "sources", None)
+    when = (f"joined {meta['date']} from earlier runs" if sources
+            else f"{meta['date']}, {meta['cores']} cores")
+    md = [f"# Loom's speed/accuracy trade ({when})", "",
           f"Bake: median of {args.runs} whole-process runs. Render: node mode, {args.res}^2 px, "
           f"{args.samples} samples, {args.light}-lit swatch, median of {args.repeats}, as a "
           "ratio to a Principled BSDF with sheen in the same run. Errors against the "
           "`reference` preset of the same tier: BSDF relative L1 over the sphere (repeat "
           "average, C++ model), image relative RMSE (every material rendered with one seed; "
           "'reference, other seed' is the reference rendered with another: Monte Carlo noise "
-          "alone). Mapping: model vs Cycles closures.", "",
+          "alone). Mapping: model vs Cycles closures.", ""]
+    if sources:
+        md += ["Joined from earlier runs (`--merge`), each with its own loom-bake:", ""]
+        md += [f"- `{s['dir']}` ({s.get('date') or 'date not recorded'}, "
+               f"{s.get('cores') or 'unrecorded'} cores): loom-bake sha256 "
+               f"{s['loom_bake_sha256'][:12]}, {', '.join(s['pairs'])}" for s in sources]
+        md += [""]
+    md += [
           "## Median over fabrics", "",
           "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
     for s in summ:
@@ -448,8 +540,10 @@ def plot_lobes(args):
 
 def main(argv):
     args = parse(argv)
+    rows = merge(args) if args.merge is not None else None
     os.makedirs(args.out, exist_ok=True)
-    rows = measure(args)
+    if rows is None:
+        rows = measure(args)
     write_outputs(rows, args)
     lobes = args.lobes != "none" and "raywave" in args.tiers
     if lobes:

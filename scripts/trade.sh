@@ -9,6 +9,7 @@
 #                         [--qualities draft,final] [--runs 3] [--samples 16] [--res 96]
 #                         [--repeats 3] [--light front|back] [--no-render]
 #                         [--lobes FABRIC:QUALITY:THETA_I:H:SIGMA|none] [--out DIR] [--resume]
+#   bash scripts/trade.sh --merge DIR1,DIR2 --out DIR  (join earlier runs: one table, one plot)
 # Writes DIR (default out/trade): trade.csv, trade.json, trade.md (the summary), pareto.png
 # (error against render-time ratio) and lobes.png (each fitted lobe at one (theta_i, h, sigma)
 # beside the simulation). Everything (11 fabrics x 2 tiers x 4 presets, 3 runs) takes hours on
@@ -17,8 +18,13 @@
 # loom-bake binary) measures only the rest, so a long run can be split over several sittings.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-case ${1:-} in -h|--help) sed -n '2,17p' "$0"; exit 0 ;; esac
-bash "$here/scripts/setup.sh"
-LOOM_BUILD_DIR=$here/build bash "$here/scripts/build.sh" >/dev/null
+case ${1:-} in -h|--help) sed -n '2,18p' "$0"; exit 0 ;; esac
+case " $* " in
+  *" --merge"*) ;;  # joins earlier runs: measures nothing, needs no build
+  *)
+    bash "$here/scripts/setup.sh"
+    LOOM_BUILD_DIR=$here/build bash "$here/scripts/build.sh" >/dev/null
+    ;;
+esac
 # Debian's python3 (its numpy and matplotlib), whatever python3 comes first on PATH.
 exec /usr/bin/python3 "$here/bench/trade.py" --bake "$here/build/loom-bake" "$@"
