@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <thread>
 
@@ -390,6 +391,55 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
       }
       for (auto& c : ci) fitted[size_t(c[0] * cols + c[1])] = 1;
     }
+
+  // Energy cap: no slice's lobes hold more than the slice's data at sigma = 0 (asg_fit.h).
+  {
+    const size_t S0 = size_t(M) * size_t(N);
+    auto corners = [&](int m, int n, int (&cn)[4], std::array<double, 4>& w) {
+      const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
+      w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
+      const int c4[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
+      for (int c = 0; c < 4; ++c) cn[c] = c4[c][0] * cols + c4[c][1];
+    };
+    auto lobe_energy = [&](int m, int n) {  // sum_l asg_integral of S.7's interpolated lobes
+      int cn[4];
+      std::array<double, 4> w;
+      corners(m, n, cn, w);
+      double e = 0;
+      for (int l = 0; l < L; ++l) {
+        double mu1 = 0, mu2 = 0, c = 0;
+        for (int k = 0; k < 4; ++k) {
+          const double* q = &nodes[size_t((cn[k] * L + l) * kQ)];
+          mu1 += w[size_t(k)] * q[3];
+          mu2 += w[size_t(k)] * q[4];
+          c += w[size_t(k)] * q[5];
+        }
+        e += sh::asg_integral(float(mu1), float(mu2), float(c));
+      }
+      return e;
+    };
+    std::vector<double> data(S0, 0.0);
+    std::vector<std::pair<double, size_t>> order;
+    for (size_t sl = 0; sl < S0; ++sl) {
+      const double* f = g.slice(sl, 0);
+      for (size_t b = 0; b < g.bins(); ++b) data[sl] += g.weight[b] * f[b];
+      const double e = lobe_energy(int(sl) / N, int(sl) % N);
+      if (e > data[sl]) order.emplace_back(data[sl] > 0 ? e / data[sl] : HUGE_VAL, sl);
+    }
+    std::sort(order.begin(), order.end(), std::greater<>());
+    for (const auto& [ratio, sl] : order) {
+      const int m = int(sl) / N, n = int(sl) % N;
+      const double e = lobe_energy(m, n);  // earlier scalings may have brought it down already
+      if (!(e > data[sl])) continue;
+      const double scale = std::max(0.0, data[sl] / e);
+      int cn[4];
+      std::array<double, 4> w;
+      corners(m, n, cn, w);
+      for (int k = 0; k < 4; ++k)
+        if (w[size_t(k)] > 0)
+          for (int l = 0; l < L; ++l) nodes[size_t((cn[k] * L + l) * kQ + 5)] *= scale;
+    }
+  }
 
   AsgTable t;
   t.lobes = L;
