@@ -419,7 +419,8 @@ def write_outputs(rows, args):
     if sources:
         md += ["Joined from earlier runs (`--merge`), each with its own loom-bake:", ""]
         md += [f"- `{s['dir']}` ({s.get('date') or 'date not recorded'}, "
-               f"{s.get('cores') or 'unrecorded'} cores): loom-bake sha256 "
+               f"{str(s['cores']) + ' cores' if s.get('cores') else 'cores not recorded'}): "
+               "loom-bake sha256 "
                f"{s['loom_bake_sha256'][:12]}, {', '.join(s['pairs'])}" for s in sources]
         md += [""]
     md += [
