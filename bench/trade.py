@@ -19,8 +19,9 @@ Choices where the issue is silent:
     the reference preset's render, and beside it the reference rendered again with another
     seed: what Monte Carlo noise alone does at these samples.
   * The Pareto plot shows, per tier and preset, the median over fabrics of the render-time ratio
-    and of the BSDF error, the presets of a tier joined in order, each fabric's point faint
-    behind; the points no other point beats on both axes are ringed.
+    and of the BSDF error (and the image error), the presets of a tier joined in order, each
+    fabric's point faint behind; the points no other point beats on both axes are ringed. One
+    panel per tier: each tier's errors are against its own reference.
 """
 
 import argparse
@@ -452,41 +453,46 @@ def plot_pareto(rows, summ, args):
     panels = [("bsdf_l1", "BSDF relative L1 vs reference")]
     if not args.no_render:
         panels.append(("image_rmse", "image relative RMSE vs reference"))
-    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 5), squeeze=False)
+    # One panel per error and tier: each tier's errors are against its own reference, and the
+    # tiers' scales differ tenfold (surface presets within a few hundredths), so a shared axis
+    # would stack one tier's presets on top of each other.
+    tiers = [t for t in args.tiers if any(r["tier"] == t for r in rows)] or list(args.tiers)
+    fig, axes = plt.subplots(len(panels), len(tiers), figsize=(6.5 * len(tiers), 4.6 * len(panels)),
+                             squeeze=False)
     colours = {"surface": "tab:blue", "raywave": "tab:red"}
     markers = {"draft": "o", "preview": "s", "final": "^", "reference": "*"}
-    for ax, (ykey, ylabel) in zip(axes[0], panels):
-        for r in rows:
-            if r.get(xkey) is not None and r.get(ykey) is not None:
-                ax.scatter(r[xkey], r[ykey], color=colours[r["tier"]], alpha=0.2,
-                           marker=markers[r["quality"]], s=18)
-        for tier in args.tiers:
+    for p, (ykey, ylabel) in enumerate(panels):
+        for col, tier in enumerate(tiers):
+            ax = axes[p][col]
+            for r in rows:
+                if r["tier"] == tier and r.get(xkey) is not None and r.get(ykey) is not None:
+                    ax.scatter(r[xkey], r[ykey], color=colours[tier], alpha=0.2,
+                               marker=markers[r["quality"]], s=18)
             sel = [s for s in summ if s["tier"] == tier and s.get(xkey) is not None
                    and s.get(ykey) is not None]
             ax.plot([s[xkey] for s in sel], [s[ykey] for s in sel], color=colours[tier],
-                    label=tier)
+                    label=f"{tier}: median over fabrics")
             for s in sel:
                 ax.scatter(s[xkey], s[ykey], color=colours[tier], marker=markers[s["quality"]],
                            s=60, zorder=3)
                 ax.annotate(s["quality"], (s[xkey], s[ykey]), textcoords="offset points",
                             xytext=(5, 4), fontsize=8)
-            # Each tier's errors are against its own reference (whose error is 0 by
-            # definition): the front is per tier, among the presets below the reference.
+            # The front among the presets below the reference (whose error is 0 by definition).
             cand = [s for s in sel if s["quality"] != "reference"]
             for i in pareto([(s[xkey], s[ykey]) for s in cand]):
                 ax.scatter(cand[i][xkey], cand[i][ykey], s=220, facecolors="none",
                            edgecolors="black", zorder=4)
-        if ykey == "image_rmse":
-            for tier in args.tiers:
+            if ykey == "image_rmse":
                 floors = [r["image_noise_floor"] for r in rows
                           if r["tier"] == tier and r.get("image_noise_floor")]
                 if floors:
                     ax.axhline(statistics.median(floors), color=colours[tier], ls="--", lw=1,
-                               label=f"{tier}: reference vs itself, other seed (median)")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(ylabel)
-        ax.grid(alpha=0.3)
-        ax.legend()
+                               label="reference vs itself, other seed (median)")
+            ax.set_title(f"{tier}: {ylabel}", fontsize=10)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
     fig.suptitle("Loom: error against cost per tier and preset (median over fabrics; errors "
                  "against the tier's own reference; ringed: each tier's Pareto front)",
                  fontsize=10)
