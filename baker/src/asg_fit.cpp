@@ -392,52 +392,58 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
       for (auto& c : ci) fitted[size_t(c[0] * cols + c[1])] = 1;
     }
 
+  // Each slice's corner nodes and S.5's weights (a slice on a block border belongs to both
+  // blocks and has the same lobes in each: the corners are shared).
+  const size_t S = size_t(M) * size_t(N), B = g.bins();
+  struct SliceNodes {
+    int node[4];
+    double w[4];
+  };
+  std::vector<SliceNodes> at(S);
+  for (int m = 0; m < M; ++m)
+    for (int n = 0; n < N; ++n) {
+      const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
+      const auto w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
+      const int cn[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
+      SliceNodes& sn = at[slice_index(m, n)];
+      for (int c = 0; c < 4; ++c) {
+        sn.node[c] = cn[c][0] * cols + cn[c][1];
+        sn.w[c] = w[size_t(c)];
+      }
+    }
+
   // Energy cap: no slice's lobes hold more than the slice's data at sigma = 0 (asg_fit.h).
   {
-    const size_t S0 = size_t(M) * size_t(N);
-    auto corners = [&](int m, int n, int (&cn)[4], std::array<double, 4>& w) {
-      const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
-      w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
-      const int c4[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
-      for (int c = 0; c < 4; ++c) cn[c] = c4[c][0] * cols + c4[c][1];
-    };
-    auto lobe_energy = [&](int m, int n) {  // sum_l asg_integral of S.7's interpolated lobes
-      int cn[4];
-      std::array<double, 4> w;
-      corners(m, n, cn, w);
+    auto lobe_energy = [&](size_t sl) {  // sum_l asg_integral of S.7's interpolated lobes
       double e = 0;
       for (int l = 0; l < L; ++l) {
         double mu1 = 0, mu2 = 0, c = 0;
         for (int k = 0; k < 4; ++k) {
-          const double* q = &nodes[size_t((cn[k] * L + l) * kQ)];
-          mu1 += w[size_t(k)] * q[3];
-          mu2 += w[size_t(k)] * q[4];
-          c += w[size_t(k)] * q[5];
+          const double* q = &nodes[size_t((at[sl].node[k] * L + l) * kQ)];
+          mu1 += at[sl].w[k] * q[3];
+          mu2 += at[sl].w[k] * q[4];
+          c += at[sl].w[k] * q[5];
         }
         e += sh::asg_integral(float(mu1), float(mu2), float(c));
       }
       return e;
     };
-    std::vector<double> data(S0, 0.0);
+    std::vector<double> data(S, 0.0);
     std::vector<std::pair<double, size_t>> order;
-    for (size_t sl = 0; sl < S0; ++sl) {
+    for (size_t sl = 0; sl < S; ++sl) {
       const double* f = g.slice(sl, 0);
-      for (size_t b = 0; b < g.bins(); ++b) data[sl] += g.weight[b] * f[b];
-      const double e = lobe_energy(int(sl) / N, int(sl) % N);
+      for (size_t b = 0; b < B; ++b) data[sl] += g.weight[b] * f[b];
+      const double e = lobe_energy(sl);
       if (e > data[sl]) order.emplace_back(data[sl] > 0 ? e / data[sl] : HUGE_VAL, sl);
     }
     std::sort(order.begin(), order.end(), std::greater<>());
     for (const auto& [ratio, sl] : order) {
-      const int m = int(sl) / N, n = int(sl) % N;
-      const double e = lobe_energy(m, n);  // earlier scalings may have brought it down already
+      const double e = lobe_energy(sl);  // earlier scalings may have brought it down already
       if (!(e > data[sl])) continue;
       const double scale = std::max(0.0, data[sl] / e);
-      int cn[4];
-      std::array<double, 4> w;
-      corners(m, n, cn, w);
       for (int k = 0; k < 4; ++k)
-        if (w[size_t(k)] > 0)
-          for (int l = 0; l < L; ++l) nodes[size_t((cn[k] * L + l) * kQ + 5)] *= scale;
+        if (at[sl].w[k] > 0)
+          for (int l = 0; l < L; ++l) nodes[size_t((at[sl].node[k] * L + l) * kQ + 5)] *= scale;
     }
   }
 
@@ -448,27 +454,15 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
   t.sigmas = refl ? std::vector<double>{0.0} : sim.settings.sigmas;
   for (int i = 0; i < rows * cols * L; ++i) t.nodes.push_back(lobe_from(&nodes[size_t(i * kQ)]));
 
-  // Lobe values G_l on every bin of every slice (a slice on a block border belongs to both
-  // blocks and has the same lobes in each: the corners are shared).
-  const size_t S = size_t(M) * size_t(N), B = g.bins();
-  struct SliceNodes {
-    int node[4];
-    double w[4];
-  };
-  std::vector<SliceNodes> at(S);
+  // Lobe values G_l on every bin of every slice.
   std::vector<double> G(S * B * size_t(L));
   for (int m = 0; m < M; ++m)
     for (int n = 0; n < N; ++n) {
-      const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
-      const auto w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
-      SliceNodes& sn = at[slice_index(m, n)];
-      const int cn[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
+      const SliceNodes& sn = at[slice_index(m, n)];
       std::vector<double> q(size_t(kQ * L), 0.0);
-      for (int c = 0; c < 4; ++c) {
-        sn.node[c] = cn[c][0] * cols + cn[c][1];
-        sn.w[c] = w[size_t(c)];
-        for (int i = 0; i < kQ * L; ++i) q[size_t(i)] += w[size_t(c)] * node(cn[c][0], cn[c][1])[i];
-      }
+      for (int c = 0; c < 4; ++c)
+        for (int i = 0; i < kQ * L; ++i)
+          q[size_t(i)] += sn.w[c] * nodes[size_t(sn.node[c] * kQ * L + i)];
       double* Gs = &G[slice_index(m, n) * B * size_t(L)];
       for (size_t bin = 0; bin < B; ++bin)
         for (int l = 0; l < L; ++l) {
