@@ -178,6 +178,58 @@ TEST(Extremes, TexelGuardKeepsEveryBakedTexel) {
   }
 }
 
+TEST(Extremes, TexelGuardFrameIsOneTheClosuresCanUse) {
+  // Whatever a texel's tangent and normal hold, texel_guard_frame gives what the closures need
+  // (checked here directly, not through the evaluators): n unit and above the cloth, t unit and
+  // at least 1e-3 (sine) from n (the ply frame of raywave_ply_space) and from the cloth normal z,
+  // so that the glossy normal surface_glossy_normal(t) is perpendicular to t (a microfacet
+  // closure whose tangent lies along its normal has no frame). Inputs: every hostile component
+  // value in each slot, and the cases that lie near the wrong side of a test: vertical tangents
+  // (exactly, 1e-9 off, and 3.1e-5 off: what node mode reads for a stored 0 of a half map),
+  // tangents along tilted normals, normals below or in the cloth.
+  std::vector<vec3> vs;
+  for (float x : kHostile)
+    for (float y : kHostile)
+      for (float z : {kNaN, kInf, 0.0f, 1e-30f, 1.0f, -1.0f, 1e30f}) vs.emplace_back(x, y, z);
+  const vec3 tilted = sh::normalize(vec3(0.3f, -0.2f, 0.9f));
+  for (vec3 v : {vec3(0, 0, 1), vec3(0, 0, -1), vec3(1e-9f, 0, 1), vec3(0, -1e-9f, 3.5f),
+                 vec3(3.05e-5f, 3.05e-5f, 3.5f), tilted,
+                 -tilted, vec3(0.2f, 0.1f, -0.9f), vec3(1, 0, 0), vec3(0.95f, 0.3f, 0.0f)})
+    vs.push_back(v);
+  long n = 0, bad = 0;
+  std::string first;
+  for (const vec3& t0 : vs)
+    for (const vec3& n0 : vs) {
+      vec3 t = t0, nn = n0;
+      sh::texel_guard_frame(t, nn);
+      const vec3 nc = sh::surface_glossy_normal(t);
+      const bool ok = std::abs(sh::length(nn) - 1.0f) < 1e-5f && nn[2] > 0.0f &&
+                      std::abs(sh::length(t) - 1.0f) < 1e-5f &&
+                      sh::length(sh::cross(t, nn)) > 1e-3f &&
+                      std::sqrt(t[0] * t[0] + t[1] * t[1]) > 1e-3f &&
+                      std::abs(sh::dot(nc, t)) < 1e-5f && std::abs(sh::length(nc) - 1.0f) < 1e-5f;
+      ++n;
+      if (!ok && bad++ == 0)
+        first = fmt::format("t ({}, {}, {}) n ({}, {}, {}) -> t ({}, {}, {}) n ({}, {}, {})",
+                            t0[0], t0[1], t0[2], n0[0], n0[1], n0[2], t[0], t[1], t[2], nn[0],
+                            nn[1], nn[2]);
+    }
+  EXPECT_GT(n, 300000);
+  EXPECT_EQ(bad, 0) << "of " << n << "; first: " << first;
+  // A zero vector as node mode reads it from a half map (2^-15 per component) is a zero vector:
+  // the same fallbacks as for exact zeros.
+  for (const vec3& n0 : {tilted, vec3(0, 0, 1), vec3(0.95f, 0.3f, 0.1f)}) {
+    vec3 t_zero(0, 0, 0), n_zero = n0, t_read(3.05e-5f, 3.05e-5f, 3.05e-5f), n_read = n0;
+    sh::texel_guard_frame(t_zero, n_zero);
+    sh::texel_guard_frame(t_read, n_read);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(t_zero[k], t_read[k]) << "tangent " << k;
+    vec3 t1 = tilted, nz(0, 0, 0), t2 = tilted, nr(3.05e-5f, 3.05e-5f, 3.05e-5f);
+    sh::texel_guard_frame(t1, nz);
+    sh::texel_guard_frame(t2, nr);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(nz[k], nr[k]) << "normal " << k;
+  }
+}
+
 TEST(Extremes, SurfaceEvaluatorsStayFiniteForHostileTexels) {
   const auto a = loom::load_atlas(baked("surface"));
   struct Variant {

@@ -7,8 +7,14 @@
 //   * NaN becomes the field's neutral value (`fallback`); +-Inf and every other value outside the
 //     range are clamped to the nearest end (Inf in the optical thickness is the thickest slab);
 //   * the ply frame: a normal that is not finite, zero or not above the cloth becomes the cloth
-//     normal (0, 0, 1); a tangent that is not finite, zero or (nearly) along the normal becomes a
-//     tangent perpendicular to it; otherwise both are only normalised, as before.
+//     normal (0, 0, 1); a tangent that is not finite, zero, (nearly) along the normal or (nearly)
+//     along the cloth normal z becomes a tangent perpendicular to the normal; otherwise both are
+//     only normalised, as before. A tangent along z has no glossy normal (surface_glossy_normal
+//     falls back to z itself, and a microfacet closure whose tangent lies along its normal has
+//     no frame: Cycles' renders and the C++ emulator then disagree). "Nearly" is within 1e-3
+//     (sine of the angle; baked tangents are >= 0.3 from either): well above what node mode reads
+//     for a stored 0 of a half map (Cycles' SVM image textures turn it into 2^-15 = 3.1e-5), so
+//     that node mode and the C++ evaluators take the same branch.
 #ifndef LOOM_TEXEL_GUARD_H
 #define LOOM_TEXEL_GUARD_H
 #include "osl_compat.h"
@@ -27,9 +33,14 @@ LOOM_FN color texel_guard_color(color c, float lo, float hi, float fallback) {
 }
 
 /// v scaled to unit length without overflow (components up to the float maximum), or the zero
-/// vector when v is zero or not finite. A vector of length 1 within 1e-5 is returned as it is.
+/// vector when v is not finite or has no component larger than 1e-3 in magnitude (no direction:
+/// the baker stores unit vectors, and node mode reads a stored 0 of a half map as 2^-15, so a
+/// zero vector must stay one there too). A vector of length 1 within 1e-5 is returned as it is.
 LOOM_FN vector texel_guard_unit(vector v) {
   if (!(isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2])))
+    return vector(0.0);
+  float m = max(max(abs(v[0]), abs(v[1])), abs(v[2]));
+  if (!(m > 1e-3))
     return vector(0.0);
   float l = length(v);
   float off = l - 1.0;
@@ -37,19 +48,19 @@ LOOM_FN vector texel_guard_unit(vector v) {
     return v;  // unit already (to float rounding): kept as it is, bit for bit
   if (l > 0.0 && isfinite(l))
     return v / l;
-  float m = max(max(abs(v[0]), abs(v[1])), abs(v[2]));
-  if (!(m > 0.0))
-    return vector(0.0);
   return normalize(v / m);
 }
 
-/// The ply frame (t, n) of a texel in the tangent frame: unit, n above the cloth, t not along n.
+/// The ply frame (t, n) of a texel in the tangent frame: unit, n above the cloth, t along
+/// neither n (|t x n| > 1e-3) nor the cloth normal (t's xy part longer than 1e-3, which for a
+/// unit t is the length surface_glossy_normal divides by). The fallback tangent's xy part has
+/// length >= 0.43.
 LOOM_FN void texel_guard_frame(LOOM_OUT(vector) t, LOOM_OUT(vector) n) {
   vector nn = texel_guard_unit(n);
   if (!(nn[2] > 0.0))
     nn = vector(0.0, 0.0, 1.0);
   vector tt = texel_guard_unit(t);
-  if (!(length(cross(tt, nn)) > 1e-6)) {
+  if (!(length(cross(tt, nn)) > 1e-3) || !(tt[0] * tt[0] + tt[1] * tt[1] > 1e-6)) {
     // Any direction perpendicular to the normal: the one nearest to the cloth's x axis (or y).
     vector a = vector(1.0, 0.0, 0.0);
     if (abs(nn[0]) > 0.9)
