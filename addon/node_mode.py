@@ -38,8 +38,8 @@ import os
 import bpy
 
 from . import osl_source
-from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_,
-                         min_, mix, normalize, select, sqrt, vec, wrap)
+from .nodes_expr import (Builder, F, V, atan2, clamp, compare, cross, dot, fabs, floor, length,
+                         max_, min_, mix, normalize, select, sqrt, vec, wrap)
 
 GROUP_PREFIX = "Loom Surface"
 MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
@@ -56,14 +56,9 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO
 # whitespace ignored) at the time of the transcription. tests/blender/test_transcription.py
 # fails when a source's code changes: read the diff, update the transcription below, run
 # tests/blender/test_parity.py, then record the new fingerprints here.
-# Not transcribed (not yet): the shaders' texel_guard.h calls (also for node_mode_raywave).
-# Every texel the baker writes is in range (Extremes.TexelGuardKeepsEveryBakedTexel, with C++
-# bilinear sampling), so this matters wherever a texel or a filtered mix of texels falls outside
-# the baker's ranges (an atlas edited or decoded wrongly, NaN): there node mode's math reads it
-# as it is (but for the gap, which node_mode_raywave clamps), where the OSL shaders and the C++
-# evaluators bring it back into range first.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "c45bf04a19424a79",
+    "include/loom/texel_guard.h": "b8b33a601cd55ae6",
     "include/loom/visibility.h": "748a60042d62eda6",
     "include/loom/sggx.h": "bb8987c508a03304",
     "loom_cloth_surface.osl": "e8c0712608a0813a",
@@ -86,6 +81,108 @@ def constants(required=REQUIRED_CONSTANTS) -> dict[str, float]:
 def sggx_fiber_roughness(roughness, K):
     """sggx.h: sggx_fiber_roughness: clamp(roughness, LOOM_SGGX_MIN_ROUGHNESS, 1)."""
     return clamp(roughness, K["LOOM_SGGX_MIN_ROUGHNESS"], 1.0)
+
+
+# ======================================================================= texel_guard.h
+#
+# Both shaders bring every atlas texel back into the baker's ranges before any shading math; node
+# mode does the same for the texels its math reads (height, h, the optical thickness and the IOR
+# are read by neither group's math, so they are not guarded here). Two facts of Cycles' side:
+# * Cycles' image loader sets every channel of a float pixel to 0 when one of them is not finite
+#   (scene/image.cpp, "Make sure we don't have buggy values"; half images too in later versions),
+#   so a NaN texel usually reaches node mode as 0 where the OSL shader reads NaN; both are then
+#   guarded to a finite value in range, not always the same one.
+# * Math MAXIMUM and MINIMUM are fmaxf and fminf in Cycles' SVM (kernel/svm/math_util.h), which
+#   return the other operand for a NaN: max(min(x, hi), lo) of a NaN is lo, finite, and the
+#   NaN's fallback is then picked by a Mix node whose unused side is finite too.
+
+_BIG = 3.0e38  # a finite bound below FLT_MAX that a node socket stores exactly
+
+
+def _not_nan(x: F) -> F:
+    """1 unless x is NaN (every comparison with a NaN is false; any other x is > 0 or < 1)."""
+    return max_(x > 0.0, x < 1.0)
+
+
+def _finite(x: F) -> F:
+    """1 if x is finite: x - x is 0 for a finite x and NaN for +-Inf and NaN (Math COMPARE)."""
+    return compare(x - x, 0.0, 0.0)
+
+
+def texel_guard(x, lo: float, hi: float, fallback: float):
+    """texel_guard.h: texel_guard(x, lo, hi, fallback).
+
+        if (isnan(x)) return fallback;  return clamp(x, lo, hi)
+
+    As MAXIMUM then MINIMUM (see above: a NaN comes out as lo), then a Mix node for the NaN's
+    fallback unless it is lo anyway."""
+    g = min_(max_(x, lo), hi)
+    if fallback == lo:
+        return g
+    return select(_not_nan(x), g, fallback)
+
+
+def texel_guard_unit(v: V) -> V:
+    """texel_guard.h: texel_guard_unit(v): v / |v| without overflow; the zero vector when v is
+    not finite or no component exceeds 1e-3 in magnitude.
+
+        m = max(|v.x|, |v.y|, |v.z|);  if (!finite(v) || !(m > 1e-3)) return 0;  return v / |v|
+
+    Nodes: each component is clamped to +-3e38 (a NaN becomes -3e38: the unused side of the
+    final Mix node stays finite), divided by the largest magnitude (Vector Math DIVIDE gives 0
+    for 0) and normalised. The header returns a vector already of unit length (within 1e-5) as
+    it is; here it is normalised once more, a difference of float rounding."""
+    cs = (v.x, v.y, v.z)
+    cl = [min_(max_(c, -_BIG), _BIG) for c in cs]
+    m = max_(max_(fabs(cl[0]), fabs(cl[1])), fabs(cl[2]))
+    ok = _finite(cs[0]) * _finite(cs[1]) * _finite(cs[2]) * (m > 1e-3)
+    u = normalize(vec(cl[0], cl[1], cl[2]) / vec(m, m, m))
+    return select(ok, u, (0.0, 0.0, 0.0))
+
+
+def texel_guard_frame(t: V, n: V):
+    """texel_guard.h: texel_guard_frame(t, n) -> (t, n).
+
+        nn = texel_guard_unit(n); if (!(nn.z > 0)) nn = (0,0,1)
+        tt = texel_guard_unit(t)
+        if (!(length(cross(tt, nn)) > 1e-3) || !(tt.x tt.x + tt.y tt.y > 1e-6)):
+            a = |nn.x| > 0.9 ? (0,1,0) : (1,0,0);  tt = normalize(a - nn dot(a, nn))
+    """
+    nn = texel_guard_unit(n)
+    nn = select(nn.z > 0.0, nn, (0.0, 0.0, 1.0))
+    tt = texel_guard_unit(t)
+    a = select(fabs(nn.x) > 0.9, (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))
+    fb = normalize(a - nn * dot(a, nn))
+    keep = (length(cross(tt, nn)) > 1e-3) * (tt.x * tt.x + tt.y * tt.y > 1e-6)
+    tt = select(keep, tt, fb)
+    return tt, nn
+
+
+def texel_guard_horizon(s):
+    """texel_guard.h: texel_guard_horizon(s) = texel_guard(s, -1, 1, 0)."""
+    return texel_guard(s, -1.0, 1.0, 0.0)
+
+
+def texel_guard_geometry(c_frame: V, c_normal: V, c_info: V, gap: F):
+    """texel_guard.h: texel_guard_geometry, for what node mode reads: the ply frame (t, n),
+    yarn_info (kind 0-2, along 0-1, ply id 0-1; NaN: 0) and the gap coverage (0-1; NaN: 0).
+    Returns (t, n, info, gap)."""
+    t, n = texel_guard_frame(c_frame, c_normal)
+    info = vec(texel_guard(c_info.x, 0.0, 2.0, 0.0), texel_guard(c_info.y, 0.0, 1.0, 0.0),
+               texel_guard(c_info.z, 0.0, 1.0, 0.0))
+    return t, n, info, texel_guard(gap, 0.0, 1.0, 0.0)
+
+
+def texel_guard_optics(k_rd: V, k_rs: F, k_td: V, k_ts: F, params: V):
+    """texel_guard.h: texel_guard_optics, for what node mode reads: albedos 0-1 (NaN: 0),
+    roughness 0.001-1 (NaN: 0.25) and blend 0-1 (NaN: 0.5) of spec_params. Returns (k_rd, k_rs,
+    k_td, k_ts, roughness, blend)."""
+    def col(c):
+        return vec(*(texel_guard(c[i], 0.0, 1.0, 0.0) for i in range(3)))
+
+    return (col(k_rd), texel_guard(k_rs, 0.0, 1.0, 0.0), col(k_td),
+            texel_guard(k_ts, 0.0, 1.0, 0.0), texel_guard(params.x, 0.001, 1.0, 0.25),
+            texel_guard(params.z, 0.0, 1.0, 0.5))
 
 
 # ======================================================================= visibility.h
@@ -426,9 +523,15 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         B = b.label(cross(Nf, T), "B")
         Vw = b.vector_socket(geo.outputs["Incoming"])  # OSL: Vw = -I
         V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, N)), "V (tangent frame)")
-        t = b.label(normalize(vec(c_frame.x, c_frame.y, c_frame.z)), "t")
-        np_ = b.label(normalize(vec(c_normal.x, c_normal.y, c_normal.z)), "n_p")
-        hor = [c_h0.x, c_h0.y, c_h0.z, a_h0, c_h1.x, c_h1.y, c_h1.z, a_h1]
+
+    with b.block("texel_guard.h: texel_guard_geometry, texel_guard_optics, texel_guard_horizon"):
+        t, np_, c_info, a_info = texel_guard_geometry(c_frame, c_normal, c_info, a_info)
+        b.label(t, "t")
+        b.label(np_, "n_p")
+        c_refl, a_refl, c_trans, a_trans, rough_tex, blend = texel_guard_optics(
+            c_refl, a_refl, c_trans, a_trans, c_par)
+        hor = [texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
+                                                c_h1.x, c_h1.y, c_h1.z, a_h1)]
 
     with b.block("closure_mapping.h: surface_glossy_normal"):
         Nc = b.label(surface_glossy_normal(t), "N_c")
@@ -470,7 +573,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
 
     with b.block("closure_mapping.h: surface_closure_weights"):
         (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy) = surface_closure_weights(
-            a_info, c_par.z, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
+            a_info, blend, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
             lut.x, lut.y, lut_t.z)
         for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
                        (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
@@ -481,7 +584,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
         nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
         t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
-        a = b.label(sggx_fiber_roughness(c_par.x, K), "a")
+        a = b.label(sggx_fiber_roughness(rough_tex, K), "a")
         rough, aniso = glossy_node_inputs(a)
         b.label(rough, "Roughness = a^(1/4)")
         b.label(aniso, "Anisotropy = 1 - sqrt(a)")

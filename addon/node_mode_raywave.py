@@ -72,7 +72,7 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_DOUBLE_LAYER_BLOCKS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
-# checks both). Not transcribed: texel_guard.h (node_mode.py says why).
+# checks both). texel_guard.h is transcribed in node_mode.py and fingerprinted there.
 TRANSCRIBED_FROM = {
     "include/loom/raywave_lobes.h": "b2296fd382f159b2",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
@@ -1053,9 +1053,12 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         B = b.label(cross(Nf, T), "B")
         Vw = b.vector_socket(geo.outputs["Incoming"])
         V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, Nw)), "V (tangent frame)")
-        t = b.label(normalize(vec(c_frame.x, c_frame.y, c_frame.z)), "t")
-        np_ = b.label(normalize(vec(c_normal.x, c_normal.y, c_normal.z)), "n_p")
-        hor = [c_h0.x, c_h0.y, c_h0.z, a_h0, c_h1.x, c_h1.y, c_h1.z, a_h1]
+        # Texels outside the baker's ranges back into them first (node_mode: texel_guard.h).
+        t, np_, c_info, a_info = node_mode.texel_guard_geometry(c_frame, c_normal, c_info, a_info)
+        b.label(t, "t")
+        b.label(np_, "n_p")
+        hor = [node_mode.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
+                                                          c_h1.x, c_h1.y, c_h1.z, a_h1)]
         xp, yp, theta_i, h = raywave_ply_space(V_, t, np_)
         b.label(theta_i, "theta_i")
         b.label(h, "h")

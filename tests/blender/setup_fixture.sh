@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # CTest fixture for the Blender tests: a wrapper through which Blender (possibly inside Loom's
 # Debian chroot) runs the host's loom-bake, and a test atlas baked on the host.
-#   setup_fixture.sh LOOM_BAKE OUT_DIR
+#   setup_fixture.sh LOOM_BAKE OUT_DIR LOOM_TAMPER_ATLAS
 set -euo pipefail
 bake=$(readlink -f "$1")
 out=$2
+tamper=$(readlink -f "$3")
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 rm -rf "$out"
 mkdir -p "$out/bin"
@@ -33,4 +34,10 @@ printf '{"white_silk_organza": {"diffraction": "%s", "delta": "%s"}}\n' \
 # One final-quality ray-wave atlas (the most lobes a preset bakes: the largest node group).
 "$out/bin/loom-bake" bake white_silk_organza -o "$out/raywave-final/white_silk_organza" \
   --quality final --progress=none
+# Atlases holding texels the baker never writes (out of range; NaN and infinities), for the
+# shaders' texel guard (texel_guard.h) in node mode: the plain surface atlas and a ray-wave one.
+"$tamper" "$out/atlas-plain" "$out/tampered/plain-range" --mode range
+"$tamper" "$out/atlas-plain" "$out/tampered/plain-nonfinite" --mode nonfinite
+"$tamper" "$out/raywave/cream_cotton_twill" "$out/tampered/twill-range" --mode range
+"$tamper" "$out/raywave/cream_cotton_twill" "$out/tampered/twill-nonfinite" --mode nonfinite
 echo "fixture ready in $out"

@@ -12,7 +12,8 @@ Units are checked in the same run with a white Diffuse BSDF swatch: L = E cos th
 
 Run (inside Blender):
     blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_parity.py -- \
-        --loom-bake LOOM_BAKE --atlas ATLAS [--samples 64] [--res 64] [--tolerance 0.03]
+        --loom-bake LOOM_BAKE --atlas ATLAS [--samples 64] [--res 64] [--tolerance 0.03] \
+        [--nonfinite]
 LOOM_BAKE must run where Blender runs (inside the chroot: a host-exec wrapper). Without
 --atlas, the plain preset is baked into --out through loom.api.bake.
 """
@@ -58,6 +59,13 @@ DIFFRACTION_PAIRS = [
 # material's Bump Map Correction is on (kernel/svm/closure.h), OSL's translucent() does not; the
 # emulator models both. (Ray-wave atlases have one mixture for both backends: on this flat swatch
 # the shading normal is the geometric one, so nothing is lifted; loom-bake says "backend": "any".)
+# With --nonfinite: Cycles and the C++ evaluators do not read a NaN or Inf texel as the same
+# value (Blender 4.3's Cycles does not sanitise half images, and its SVM image textures turn a
+# stored 0 into 2^-15, measured, and by the same conversion a NaN or Inf into a finite 65536 or
+# more), so the texel guard brings them to different in-range values and no parity is expected.
+# What must hold: every pixel finite and the mean radiance at most E cos(theta_i), a BSDF
+# averaging 1/sr (pi times a white Lambertian: the tampered atlases render below 0.3 with the
+# guard; node mode without it rendered up to 6e8 on the tampered plain atlas).
 SUN = 3.0
 REPEATS_PER_METER = 173.3  # irrational-ish: no aliasing with the pixel grid
 
@@ -73,6 +81,9 @@ def extra_args(p):
     p.add_argument("--json", default=None, help="write the measured numbers here")
     p.add_argument("--diffraction", action="store_true",
                    help="also the pairs in the gap diffraction's cross (DIFFRACTION_PAIRS)")
+    p.add_argument("--nonfinite", action="store_true",
+                   help="the atlas holds NaN and +-Inf texels (tests/tools/tamper_atlas.cpp): "
+                        "check finite, bounded renders instead of the parity (see NONFINITE)")
 
 
 def eval_closures(loom_bake, atlas, wi, wo, evaluator="closures"):
@@ -133,6 +144,24 @@ def main():
     for idx, (wi, wo) in pairs:
         wi, wo = lt.unit(wi), lt.unit(wo)
         cos_i = abs(wi[2])
+        if args.nonfinite:
+            scene, plane = setup(args, wi, wo)
+            loom.api.assign(plane, atlas, mode="nodes", scale=REPEATS_PER_METER,
+                            interpolation=args.interpolation)
+            img = lt.render_to_exr(scene, os.path.join(args.out, f"nonfinite_{idx}.exr"))
+            got = [img.channel_mean(c) for c in range(3)]
+            bound = SUN * cos_i
+            print(f"loom-parity pair {idx} (non-finite texels): render RGB {got[0]:.5f} "
+                  f"{got[1]:.5f} {got[2]:.5f}, finite {img.finite()}, bound {bound:.3f}",
+                  flush=True)
+            if not img.finite():
+                failures.append(f"pair {idx}: non-finite pixels")
+            elif not all(0.0 <= g <= bound for g in got):
+                failures.append(f"pair {idx}: mean radiance {got} outside [0, E cos = {bound}]")
+            rows.append(dict(pair=idx, wi=wi, wo=wo, render=got, bound=bound))
+            for n in list(bpy.data.node_groups):
+                bpy.data.node_groups.remove(n)
+            continue
         f_c = eval_closures(loom_bake, atlas, wi, wo, "closures")
         f_m = eval_closures(loom_bake, atlas, wi, wo, "model")
         expect = [c * SUN * cos_i for c in f_c]
@@ -193,7 +222,7 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
-    compared = sum(1 for r in rows if max(r["closures"]) > 1e-4)
+    compared = sum(1 for r in rows if max(r.get("closures", r["render"])) > 1e-4)
     assert compared >= 5 or args.pairs, (f"only {compared} pairs bright enough to compare "
                                          f"(closures > 1e-4)")
     assert not failures, "; ".join(failures)
