@@ -1054,7 +1054,8 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         Vw = b.vector_socket(geo.outputs["Incoming"])
         V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, Nw)), "V (tangent frame)")
         # Texels outside the baker's ranges back into them first (node_mode: texel_guard.h).
-        t, np_, c_info, a_info = node_mode.texel_guard_geometry(c_frame, c_normal, c_info, a_info)
+        t, np_, c_info, a_info = node_mode.texel_guard_geometry(
+            c_frame, c_normal, c_info, a_info, info_used=(0, 1, 2) if nz else (0,))
         b.label(t, "t")
         b.label(np_, "n_p")
         hor = [node_mode.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
@@ -1064,9 +1065,9 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.label(h, "h")
         open_ = b.label(1.0 - clamp(a_info, 0.0, 1.0), "open")
         vis_v = b.label(select(back, 1.0, node_mode.horizon_visibility(V_, hor, K)), "vis_v")
-        weft = b.label(c_info.x > 1.5, "weft (yarn_info.r > 1.5)")
+        weft = b.label(c_info[0] > 1.5, "weft (yarn_info.r > 1.5)")
         if nz:
-            noise_inst, noise_shift = noise_pick(c_info.z, c_info.y, nz["instances"], K)
+            noise_inst, noise_shift = noise_pick(c_info[2], c_info[1], nz["instances"], K)
             noise_inst = b.label(noise_inst, "noise instance (noise_pick)")
         else:
             noise_inst, noise_shift = 0.0, 0.0
