@@ -92,9 +92,11 @@ def sggx_fiber_roughness(roughness, K):
 # only for values no baked atlas holds:
 # * a NaN becomes the range's low end, not the field's neutral value: one Clamp node per value
 #   (Cycles' clamp is min(max(x, lo), hi) with max(a, b) = a > b ? a : b, so a NaN comes out as lo).
-#   On the CPU a NaN never reaches node mode anyway: Cycles sets every channel of a float pixel to
-#   0 when one is not finite (scene/image.cpp, "Make sure we don't have buggy values"), and its
-#   SVM image textures read a half NaN or Inf as a finite 65536 or more (and a stored 0 as 2^-15);
+#   In Blender 4.3 on the CPU a NaN never reaches node mode anyway: Cycles sets every channel of a
+#   float pixel to 0 when one is not finite (scene/image.cpp, "Make sure we don't have buggy
+#   values"), and its SVM image textures read a half NaN or Inf as a finite 65536 or more and a
+#   stored 0 as 2^-15 (util/half.h's half_to_float rebiases the exponent without special cases;
+#   later versions convert exactly where the CPU can, as GPUs do: there a NaN arrives as NaN);
 # * a vector is "no direction" when its length, not its largest component, is at most 1e-3, and
 #   one whose length overflows a float (components beyond 1e19, only in float maps) gets the
 #   fallback frame instead of its direction.
