@@ -1063,7 +1063,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         xp, yp, theta_i, h = raywave_ply_space(V_, t, np_)
         b.label(theta_i, "theta_i")
         b.label(h, "h")
-        open_ = b.label(1.0 - clamp(a_info, 0.0, 1.0), "open")
+        open_ = b.label(1.0 - a_info, "open")  # a_info guarded to 0-1 above
         vis_v = b.label(select(back, 1.0, node_mode.horizon_visibility(V_, hor, K)), "vis_v")
         weft = b.label(c_info[0] > 1.5, "weft (yarn_info.r > 1.5)")
         if nz:

@@ -191,7 +191,6 @@ _PY_MATH = {
     "MAXIMUM": max,
     "LESS_THAN": lambda a, b: 1.0 if a < b else 0.0,
     "GREATER_THAN": lambda a, b: 1.0 if a > b else 0.0,
-    "COMPARE": lambda a, b, eps: 1.0 if a == b or abs(a - b) <= max(eps, 1.1920929e-07) else 0.0,
     "SQRT": lambda a: math.sqrt(a) if a > 0 else 0.0,
     "ABSOLUTE": abs,
     "EXPONENT": math.exp,
@@ -401,11 +400,6 @@ def max_(a, b_):
 
 def min_(a, b_):
     return math_op("MINIMUM", a, b_)
-
-
-def compare(a, b_, eps):
-    """Math COMPARE: 1 if a == b or |a - b| <= max(eps, FLT_EPSILON), else 0 (0 for a NaN)."""
-    return math_op("COMPARE", a, b_, eps)
 
 
 def wrap(x, hi, lo):

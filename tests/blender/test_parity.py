@@ -83,7 +83,7 @@ def extra_args(p):
                    help="also the pairs in the gap diffraction's cross (DIFFRACTION_PAIRS)")
     p.add_argument("--nonfinite", action="store_true",
                    help="the atlas holds NaN and +-Inf texels (tests/tools/tamper_atlas.cpp): "
-                        "check finite, bounded renders instead of the parity (see NONFINITE)")
+                        "check finite, bounded renders instead of the parity (see the comment above SUN)")
 
 
 def eval_closures(loom_bake, atlas, wi, wo, evaluator="closures"):
