@@ -58,7 +58,7 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "c45bf04a19424a79",
-    "include/loom/texel_guard.h": "b8b33a601cd55ae6",
+    "include/loom/texel_guard.h": "4baec8f4f99b8203",
     "include/loom/visibility.h": "748a60042d62eda6",
     "include/loom/sggx.h": "bb8987c508a03304",
     "loom_cloth_surface.osl": "e8c0712608a0813a",
@@ -97,9 +97,8 @@ def sggx_fiber_roughness(roughness, K):
 #   values"), and its SVM image textures read a half NaN or Inf as a finite 65536 or more and a
 #   stored 0 as 2^-15 (util/half.h's half_to_float rebiases the exponent without special cases;
 #   later versions convert exactly where the CPU can, as GPUs do: there a NaN arrives as NaN);
-# * a vector is "no direction" when its length, not its largest component, is at most 1e-3, and
-#   one whose length overflows a float (components beyond 1e19, only in float maps) gets the
-#   fallback frame instead of its direction.
+# * a vector whose length overflows a float (components beyond 1e19, only in float maps) gets the
+#   fallback frame instead of its direction. "No direction" is a length of at most 1e-3 in both.
 # A first, literal transcription took 159 nodes and made surface renders 1.38x as long; this one
 # takes 54 (1.08x; 160 px, 128 samples, one thread, medians of 6 renders).
 
@@ -119,7 +118,7 @@ def texel_guard_color(c: V, lo: float, hi: float) -> V:
 
 def texel_guard_unit(v: V) -> V:
     """texel_guard.h: texel_guard_unit(v): v / |v|, or the zero vector when v is not finite or has
-    no direction (shorter than 1e-3 here; see above).
+    no direction (no longer than 1e-3).
 
     Each component is clamped to +-3e38 first (a NaN becomes -3e38, an Inf 3e38), so the Mix
     node's unused side stays finite; Vector Math NORMALIZE gives 0 for 0."""

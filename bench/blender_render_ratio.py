@@ -1,15 +1,23 @@
 """Render time of Loom materials as a ratio to a Principled BSDF with sheen, same scene, samples
 and resolution, measured in one run (absolute seconds are noise on a shared machine).
 
+The ratio is of the time per sample: each material renders at --samples and again at
+--timing-samples (default 8x), and its time per sample is the difference of the two times over
+the difference of the sample counts. What a render costs once (scene and shader sync, image
+loads, the BVH) cancels: at the small sizes a benchmark can afford it was most of the
+Principled render (0.05-0.18 s at 64 px and 16 samples) and made the whole-render ratio swing 2x
+between runs. The whole-render times and ratio (at --samples) are reported beside it, and each
+material's fixed cost (whole time minus --samples times the time per sample).
+
 A swatch seen by an orthographic camera, black world, one sun: from the camera's side
 (--light front, the default) or from behind the cloth towards the camera, a little off its
 axis (--light back: what the transmission, double-layer and diffraction closures cost). Each
-material is rendered --repeats times, alternating, and the median time is reported with its
-ratio to the Principled median. Node mode (the Blender here has no OSL).
+material is rendered --repeats times, alternating, and the medians are reported with their
+ratios to the Principled medians. Node mode (the Blender here has no OSL).
 
     blender -b --factory-startup --python-exit-code 1 --python bench/blender_render_ratio.py -- \
         --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] \
-        [--repeats 3] [--light front|back] [--reference NAME [--noise-floor]] [--images DIR] \
+        [--timing-samples 128] [--repeats 3] [--light front|back] [--reference NAME [--noise-floor]] [--images DIR] \
         [--json OUT]
 
 --reference NAME adds each image's relative RMSE against NAME's image (RGB, last repeat):
@@ -38,6 +46,8 @@ def extra_args(p):
     p.add_argument("--material", action="append", default=[], dest="atlases",
                    help="NAME=DIR, repeatable")
     p.add_argument("--samples", type=int, default=16)
+    p.add_argument("--timing-samples", type=int, default=None,
+                   help="second sample count, for the time per sample (default 8 x --samples)")
     p.add_argument("--res", type=int, default=128)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--light", choices=("front", "back"), default="front")
@@ -74,6 +84,13 @@ def main():
     lt.enable_addon()
     import loom.api
 
+    if args.samples < 1:
+        raise SystemExit(f"--samples: {args.samples} (allowed: >= 1)")
+    if args.timing_samples is None:
+        args.timing_samples = 8 * args.samples
+    if args.timing_samples <= args.samples:
+        raise SystemExit(f"--timing-samples: {args.timing_samples} (allowed: more than --samples, "
+                         f"{args.samples})")
     scene = lt.empty_scene()
     scene.cycles.samples = args.samples
     scene.cycles.use_denoising = False
@@ -105,15 +122,17 @@ def main():
     if args.reference is not None and args.reference not in materials:
         raise SystemExit(f"--reference: {args.reference!r} is not one of the --material names "
                          f"({', '.join(materials)})")
-    times = {n: [] for n in materials}
+    times = {n: [] for n in materials}  # whole render at --samples
+    per_sample = {n: [] for n in materials}
     images = {}
     out = os.path.join(bpy.app.tempdir or "/tmp", "loom_render_ratio.exr")
     if args.images:
         os.makedirs(args.images, exist_ok=True)
 
-    def render(mat):
+    def render(mat, samples=args.samples):
         plane.data.materials.clear()
         plane.data.materials.append(mat)
+        scene.cycles.samples = samples
         t0 = time.monotonic()
         img = lt.render_to_exr(scene, out)
         return time.monotonic() - t0, img
@@ -124,6 +143,8 @@ def main():
             times[name].append(dt)
             if args.images:
                 shutil.copyfile(out, os.path.join(args.images, name + ".exr"))
+            dt_more, _ = render(mat, args.timing_samples)
+            per_sample[name].append((dt_more - dt) / (args.timing_samples - args.samples))
     floor = None
     if args.reference is not None and args.noise_floor:
         scene.cycles.seed = scene.cycles.seed + 1
@@ -132,11 +153,21 @@ def main():
         print(f"loom-bench: {args.reference} against itself with another seed: relative RMSE "
               f"{floor:.4f}", flush=True)
     base = statistics.median(times["principled_sheen"])
+    base_ps = statistics.median(per_sample["principled_sheen"])
+    if not base_ps > 0:
+        raise SystemExit(f"the Principled baseline took no longer at {args.timing_samples} "
+                         f"samples than at {args.samples} ({per_sample['principled_sheen']}): "
+                         "raise --timing-samples or --res")
     rows = []
     for name, ts in times.items():
         med = statistics.median(ts)
-        row = {"material": name, "median_s": med, "ratio": med / base, "times": ts}
-        line = f"loom-bench: {name:28s} median {med:7.2f} s  ratio {med / base:6.2f}"
+        ps = statistics.median(per_sample[name])
+        row = {"material": name, "ratio": ps / base_ps, "per_sample_s": ps,
+               "per_sample": per_sample[name], "median_s": med, "whole_ratio": med / base,
+               "fixed_s": med - args.samples * ps, "times": ts}
+        line = (f"loom-bench: {name:28s} per sample {ps * 1e3:8.3f} ms  ratio {ps / base_ps:6.2f}"
+                f"  (whole render {med:6.2f} s, ratio {med / base:6.2f}; fixed "
+                f"{row['fixed_s']:5.2f} s)")
         if args.reference is not None:
             row["relative_rmse"] = relative_rmse(images[name], images[args.reference])
             line += f"  rel. RMSE vs {args.reference} {row['relative_rmse']:.4f}"
@@ -144,7 +175,8 @@ def main():
         print(line, flush=True)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"samples": args.samples, "res": args.res, "light": args.light,
+            json.dump({"samples": args.samples, "timing_samples": args.timing_samples,
+                       "res": args.res, "light": args.light,
                        "reference": args.reference, "noise_floor": floor, "rows": rows}, f,
                       indent=1)
 

@@ -17,7 +17,11 @@ Choices where the issue is silent:
     alternating in one Blender process, all with the same seed (common random numbers, so
     that what differs between two images is mostly the material); the image error is against
     the reference preset's render, and beside it the reference rendered again with another
-    seed: what Monte Carlo noise alone does at these samples.
+    seed: what Monte Carlo noise alone does at these samples. The render-time ratio is of the
+    time per sample (each material also rendered at --timing-samples, 4x --samples by default:
+    the difference of the two times over the difference of the sample counts), so that what a
+    render costs once (sync, image loads, BVH) cancels; the whole-render ratio at --samples is
+    in the table beside it.
   * The Pareto plot shows, per tier and preset, the median over fabrics of the render-time ratio
     and of the BSDF error (and the image error), the presets of a tier joined in order, each
     fabric's point faint behind; the points no other point beats on both axes are ringed. One
@@ -57,6 +61,8 @@ def parse(argv):
                    help="presets to measure; reference is always baked (errors are against it)")
     p.add_argument("--runs", type=int, default=3, help="bakes per preset (median), >= 1")
     p.add_argument("--samples", type=int, default=16, help="render samples per pixel")
+    p.add_argument("--timing-samples", type=int, default=None,
+                   help="second sample count, for the time per sample (default 4 x --samples)")
     p.add_argument("--res", type=int, default=96, help="render resolution (square)")
     p.add_argument("--repeats", type=int, default=3, help="renders per material (median)")
     p.add_argument("--light", choices=("front", "back"), default="front")
@@ -95,6 +101,11 @@ def parse(argv):
         p.error("--fabrics, --tiers and --qualities must each name at least one")
     if a.runs < 1 or a.samples < 1 or a.res < 8 or a.repeats < 1:
         p.error("--runs, --samples and --repeats must be >= 1 and --res >= 8")
+    if a.timing_samples is None:
+        a.timing_samples = 4 * a.samples
+    elif a.timing_samples <= a.samples:
+        p.error(f"--timing-samples: {a.timing_samples} (allowed: more than --samples, "
+                f"{a.samples})")
     if a.lobes != "none":
         parts = a.lobes.split(":")
         ok = len(parts) == 5 and parts[0] in WEAVES + SAMPLES and parts[1] in QUALITIES
@@ -112,7 +123,8 @@ def parse(argv):
         if not a.merge:
             p.error("--merge: name at least one directory holding a done.json")
         measuring = [o for o in ("--fabrics", "--tiers", "--raywave-fabrics", "--qualities",
-                                 "--runs", "--samples", "--res", "--repeats", "--light",
+                                 "--runs", "--samples", "--timing-samples", "--res",
+                                 "--repeats", "--light",
                                  "--no-render", "--lobes", "--resume")
                      if any(x == o or x.startswith(o + "=") for x in argv)]
         if measuring:
@@ -183,7 +195,8 @@ def render(args, fabric, tier, atlases, out_dir):
            "--"]
     for q, a in atlases.items():
         cmd += ["--material", f"{q}={a}"]
-    cmd += ["--samples", str(args.samples), "--res", str(args.res), "--repeats",
+    cmd += ["--samples", str(args.samples), "--timing-samples", str(args.timing_samples),
+            "--res", str(args.res), "--repeats",
             str(args.repeats), "--light", args.light, "--reference", "reference",
             "--noise-floor", "--images", os.path.join(out_dir, "renders", f"{fabric}_{tier}"),
             "--json", js]
@@ -201,7 +214,8 @@ def settings_key(args):
     with open(args.bake, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
-    return {"runs": args.runs, "samples": args.samples, "res": args.res,
+    return {"runs": args.runs, "samples": args.samples, "timing_samples": args.timing_samples,
+            "res": args.res,
             "repeats": args.repeats, "light": args.light, "rendered": not args.no_render,
             "qualities": args.qualities, "loom_bake_sha256": h.hexdigest()}
 
@@ -238,7 +252,8 @@ def merge(args):
     and the tiers of args become the runs' own. Raises SystemExit naming what does not fit,
     before anything is written."""
     rows, sources, settings = [], [], None
-    fields = ("runs", "samples", "res", "repeats", "light", "rendered", "qualities",
+    fields = ("runs", "samples", "timing_samples", "res", "repeats", "light", "rendered",
+              "qualities",
               "loom_bake_sha256")
     for d in args.merge:
         path = os.path.join(d, "done.json")
@@ -282,6 +297,7 @@ def merge(args):
                         "cores": done.get("cores"), "date": done.get("date"),
                         "pairs": [f"{f} ({t})" for f, t in pairs]})
     args.runs, args.samples, args.res = settings["runs"], settings["samples"], settings["res"]
+    args.timing_samples = settings["timing_samples"]
     args.repeats, args.light = settings["repeats"], settings["light"]
     args.no_render = not settings["rendered"]
     args.qualities = list(settings["qualities"])
@@ -337,10 +353,14 @@ def measure(args):
                 for row in rows:
                     if row["fabric"] == fabric and row["tier"] == tier:
                         x = by[row["quality"]]
-                        row.update(render_ratio=x["ratio"], render_s=x["median_s"],
+                        p = by["principled_sheen"]
+                        row.update(render_ratio=x["ratio"], render_whole_ratio=x["whole_ratio"],
+                                   render_ms_per_sample=1e3 * x["per_sample_s"],
+                                   render_fixed_s=x["fixed_s"], render_s=x["median_s"],
                                    image_rmse=x["relative_rmse"],
                                    image_noise_floor=r["noise_floor"],
-                                   principled_s=by["principled_sheen"]["median_s"])
+                                   principled_ms_per_sample=1e3 * p["per_sample_s"],
+                                   principled_s=p["median_s"])
                 log(f"{fabric} {tier}: rendered; reference vs another seed "
                     f"{r['noise_floor']:.4f}")
             save_done(args, key, rows)
@@ -349,8 +369,9 @@ def measure(args):
 
 
 COLUMNS = ("fabric", "tier", "quality", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
-           "bsdf_l1", "bsdf_pointwise_l1", "bsdf_energy", "image_rmse", "image_noise_floor",
-           "mapping_l1", "mapping_energy", "render_s", "principled_s")
+           "render_whole_ratio", "bsdf_l1", "bsdf_pointwise_l1", "bsdf_energy", "image_rmse",
+           "image_noise_floor", "mapping_l1", "mapping_energy", "render_ms_per_sample",
+           "render_fixed_s", "render_s", "principled_ms_per_sample", "principled_s")
 
 
 def fmt(v):
@@ -394,7 +415,8 @@ def write_outputs(rows, args):
         w.writerows(rows)
     summ = summary(rows, args)
     meta = {"date": time.strftime("%Y-%m-%d"), "cores": os.cpu_count(), "runs": args.runs,
-            "samples": args.samples, "res": args.res, "repeats": args.repeats,
+            "samples": args.samples, "timing_samples": args.timing_samples, "res": args.res,
+            "repeats": args.repeats,
             "light": args.light, "rendered": not args.no_render}
     if getattr(args, "sources", None):
         meta["sources"] = args.sources
@@ -402,9 +424,10 @@ def write_outputs(rows, args):
     with open(os.path.join(args.out, "trade.json"), "w", encoding="utf-8") as f:
         json.dump({"settings": meta, "rows": rows, "summary": summ}, f, indent=1)
     cols = ("tier", "quality", "fabrics", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
-            "bsdf_l1", "image_rmse", "image_noise_floor", "mapping_l1")
+            "render_whole_ratio", "bsdf_l1", "image_rmse", "image_noise_floor", "mapping_l1")
     heads = ("tier", "preset", "fabrics", "bake s", "peak RSS MiB", "atlas MiB",
-             "render / Principled", "BSDF rel. L1 vs ref.", "image rel. RMSE vs ref.",
+             "render per sample / Principled", "whole render / Principled",
+             "BSDF rel. L1 vs ref.", "image rel. RMSE vs ref.",
              "reference, other seed", "mapping rel. L1")
     sources = getattr(args, "sources", None)
     when = (f"joined {meta['date']} from earlier runs" if sources
@@ -412,7 +435,9 @@ def write_outputs(rows, args):
     md = [f"# Loom's speed/accuracy trade ({when})", "",
           f"Bake: median of {args.runs} whole-process runs. Render: node mode, {args.res}^2 px, "
           f"{args.samples} samples, {args.light}-lit swatch, median of {args.repeats}, as a "
-          "ratio to a Principled BSDF with sheen in the same run. Errors against the "
+          "ratio to a Principled BSDF with sheen in the same run: of the time per sample "
+          f"(renders at {args.samples} and {args.timing_samples} samples: what a render costs "
+          f"once cancels) and of the whole render at {args.samples}. Errors against the "
           "`reference` preset of the same tier: BSDF relative L1 over the sphere (repeat "
           "average, C++ model), image relative RMSE (every material rendered with one seed; "
           "'reference, other seed' is the reference rendered with another: Monte Carlo noise "
@@ -448,7 +473,7 @@ def plot_pareto(rows, summ, args):
     import matplotlib.pyplot as plt
 
     xkey = "render_ratio" if not args.no_render else "bake_s"
-    xlabel = ("render time / Principled BSDF with sheen (same scene, one run)"
+    xlabel = ("render time per sample / Principled BSDF with sheen (same scene, one run)"
               if not args.no_render else "bake time, s (median)")
     panels = [("bsdf_l1", "BSDF relative L1 vs reference")]
     if not args.no_render:

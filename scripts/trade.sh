@@ -7,6 +7,7 @@
 # closure-mapping error.
 #   bash scripts/trade.sh [--fabrics A,B] [--tiers surface,raywave] [--raywave-fabrics A,B]
 #                         [--qualities draft,final] [--runs 3] [--samples 16] [--res 96]
+#                         [--timing-samples 64]
 #                         [--repeats 3] [--light front|back] [--no-render]
 #                         [--lobes FABRIC:QUALITY:THETA_I:H:SIGMA|none] [--out DIR] [--resume]
 #   bash scripts/trade.sh --merge DIR1,DIR2 --out DIR  (join earlier runs: one table, one plot)
@@ -18,7 +19,7 @@
 # loom-bake binary) measures only the rest, so a long run can be split over several sittings.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-case ${1:-} in -h|--help) sed -n '2,18p' "$0"; exit 0 ;; esac
+case ${1:-} in -h|--help) sed -n '2,19p' "$0"; exit 0 ;; esac
 case " $* " in
   *" --merge"*) ;;  # joins earlier runs: measures nothing, needs no build
   *)

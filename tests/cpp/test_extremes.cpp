@@ -230,6 +230,30 @@ TEST(Extremes, TexelGuardFrameIsOneTheClosuresCanUse) {
   }
 }
 
+TEST(Extremes, TexelGuardUnitTellsNoDirectionByLengthAsNodeModeDoes) {
+  // "No direction" is a length of at most 1e-3, the test node mode's guard makes with one Vector
+  // Math node (addon/node_mode.py texel_guard_unit): a vector whose components are all below
+  // 1e-3 but whose length is above it keeps its direction in both.
+  for (float s : {1e-4f, 5e-4f, 5.7e-4f, 5.8e-4f, 8e-4f, 9.9e-4f, 1.5e-3f, 0.02f}) {
+    for (vec3 dir : {vec3(1, 1, 1), vec3(1, 1, 0), vec3(-1, 0, 1), vec3(1, 0, 0)}) {
+      const vec3 v = dir * s;
+      const float len = std::sqrt(sh::dot(v, v));
+      const vec3 u = sh::texel_guard_unit(v);
+      if (len > 1e-3f) {
+        const vec3 want = dir / std::sqrt(sh::dot(dir, dir));
+        for (int k = 0; k < 3; ++k)
+          EXPECT_NEAR(u[k], want[k], 1e-6f) << "|v| " << len << " component " << k;
+      } else {
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(u[k], 0.0f) << "|v| " << len << " component " << k;
+      }
+    }
+  }
+  // Components up to the float maximum (a length that overflows) still give the direction.
+  const vec3 huge = sh::texel_guard_unit(vec3(3e38f, -3e38f, 3e38f));
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(std::abs(huge[k]), 1.0f / std::sqrt(3.0f), 1e-6f) << "component " << k;
+}
+
 TEST(Extremes, SurfaceEvaluatorsStayFiniteForHostileTexels) {
   const auto a = loom::load_atlas(baked("surface"));
   struct Variant {

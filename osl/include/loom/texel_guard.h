@@ -33,21 +33,23 @@ LOOM_FN color texel_guard_color(color c, float lo, float hi, float fallback) {
 }
 
 /// v scaled to unit length without overflow (components up to the float maximum), or the zero
-/// vector when v is not finite or has no component larger than 1e-3 in magnitude (no direction:
-/// the baker stores unit vectors, and node mode reads a stored 0 of a half map as 2^-15, so a
-/// zero vector must stay one there too). A vector of length 1 within 1e-5 is returned as it is.
+/// vector when v is not finite or no longer than 1e-3 (no direction: the baker stores unit
+/// vectors, and node mode reads a stored 0 of a half map as 2^-15 per component, so a zero
+/// vector must stay one there too). Node mode tests the same length (addon/node_mode.py). A
+/// vector of length 1 within 1e-5 is returned as it is; one whose length overflows a float is
+/// scaled by its largest component first.
 LOOM_FN vector texel_guard_unit(vector v) {
   if (!(isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2])))
     return vector(0.0);
-  float m = max(max(abs(v[0]), abs(v[1])), abs(v[2]));
-  if (!(m > 1e-3))
-    return vector(0.0);
   float l = length(v);
+  if (!(l > 1e-3))
+    return vector(0.0);
   float off = l - 1.0;
   if (abs(off) < 1e-5)
     return v;  // unit already (to float rounding): kept as it is, bit for bit
-  if (l > 0.0 && isfinite(l))
+  if (isfinite(l))
     return v / l;
+  float m = max(max(abs(v[0]), abs(v[1])), abs(v[2]));
   return normalize(v / m);
 }
 
