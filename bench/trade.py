@@ -214,7 +214,8 @@ def settings_key(args):
     with open(args.bake, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
-    return {"runs": args.runs, "samples": args.samples, "timing_samples": args.timing_samples,
+    return {"runs": args.runs, "samples": args.samples,
+            "timing_samples": None if args.no_render else args.timing_samples,
             "res": args.res,
             "repeats": args.repeats, "light": args.light, "rendered": not args.no_render,
             "qualities": args.qualities, "loom_bake_sha256": h.hexdigest()}
@@ -268,6 +269,10 @@ def merge(args):
             raise SystemExit(f"{bad} (expected an object with \"settings\" and \"rows\")")
         key = dict(done["settings"])
         missing = [k for k in fields if k not in key]
+        if missing == ["timing_samples"]:
+            raise SystemExit(f"loom-trade: --merge: {path} was measured by an older trade.py, "
+                             "whose render ratio was of the whole render, not per sample: its "
+                             "rows do not compare; measure again")
         if missing:
             raise SystemExit(f"{bad} (settings lack {', '.join(missing)})")
         sha = key.pop("loom_bake_sha256")

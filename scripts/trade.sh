@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The speed/accuracy trade (bench/trade.py): for each tier (surface, raywave) and quality preset
 # on the weave presets and the sample fabrics, bake time and peak memory (median of whole-process
-# runs), atlas size, render time as a ratio to a Principled BSDF with sheen (one Blender run per
-# fabric and tier, node mode), error against the reference preset (BSDF relative L1 by the C++
-# model; image relative RMSE, beside the reference rendered with another seed) and the
-# closure-mapping error.
+# runs), atlas size, render time (per sample, and whole) as a ratio to a Principled BSDF with
+# sheen (one Blender run per fabric and tier, node mode), error against the reference preset
+# (BSDF relative L1 by the C++ model; image relative RMSE, beside the reference rendered with
+# another seed) and the closure-mapping error.
 #   bash scripts/trade.sh [--fabrics A,B] [--tiers surface,raywave] [--raywave-fabrics A,B]
 #                         [--qualities draft,final] [--runs 3] [--samples 16] [--res 96]
 #                         [--timing-samples 64]

@@ -248,10 +248,24 @@ TEST(Extremes, TexelGuardUnitTellsNoDirectionByLengthAsNodeModeDoes) {
       }
     }
   }
+  // The threshold is the float 1e-3 (0.0010000000475), as OSL and node mode's sockets hold it:
+  // a length of exactly that is no direction, the next float up is one.
+  const float eps = 1e-3f;
+  for (int k = 0; k < 3; ++k) {
+    vec3 at(0, 0, 0), above(0, 0, 0);
+    at[k] = -eps;
+    above[k] = std::nextafter(eps, 1.0f);
+    const vec3 u_at = sh::texel_guard_unit(at), u_above = sh::texel_guard_unit(above);
+    for (int j = 0; j < 3; ++j) {
+      EXPECT_EQ(u_at[j], 0.0f) << "|v| = float(1e-3) along " << k << ", component " << j;
+      EXPECT_EQ(u_above[j], j == k ? 1.0f : 0.0f) << "|v| just above, along " << k;
+    }
+  }
   // Components up to the float maximum (a length that overflows) still give the direction.
   const vec3 huge = sh::texel_guard_unit(vec3(3e38f, -3e38f, 3e38f));
+  const float c = 1.0f / std::sqrt(3.0f);
   for (int k = 0; k < 3; ++k)
-    EXPECT_NEAR(std::abs(huge[k]), 1.0f / std::sqrt(3.0f), 1e-6f) << "component " << k;
+    EXPECT_NEAR(huge[k], k == 1 ? -c : c, 1e-6f) << "component " << k;
 }
 
 TEST(Extremes, SurfaceEvaluatorsStayFiniteForHostileTexels) {

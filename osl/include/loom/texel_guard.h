@@ -37,12 +37,15 @@ LOOM_FN color texel_guard_color(color c, float lo, float hi, float fallback) {
 /// vectors, and node mode reads a stored 0 of a half map as 2^-15 per component, so a zero
 /// vector must stay one there too). Node mode tests the same length (addon/node_mode.py). A
 /// vector of length 1 within 1e-5 is returned as it is; one whose length overflows a float is
-/// scaled by its largest component first.
+/// scaled by its largest component first. The 1e-3 is held in a float, as OSL and node mode's
+/// sockets hold it: a C++ literal would compare in double, against 0.001 instead of
+/// 0.0010000000475, and take the other branch for a length of exactly float(1e-3).
 LOOM_FN vector texel_guard_unit(vector v) {
   if (!(isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2])))
     return vector(0.0);
   float l = length(v);
-  if (!(l > 1e-3))
+  float eps = 1e-3;
+  if (!(l > eps))
     return vector(0.0);
   float off = l - 1.0;
   if (abs(off) < 1e-5)
@@ -56,13 +59,14 @@ LOOM_FN vector texel_guard_unit(vector v) {
 /// The ply frame (t, n) of a texel in the tangent frame: unit, n above the cloth, t along
 /// neither n (|t x n| > 1e-3) nor the cloth normal (t's xy part longer than 1e-3, which for a
 /// unit t is the length surface_glossy_normal divides by). The fallback tangent's xy part has
-/// length >= 0.43.
+/// length >= 0.43. Both tests are the ones node mode makes (lengths against a float 1e-3).
 LOOM_FN void texel_guard_frame(LOOM_OUT(vector) t, LOOM_OUT(vector) n) {
   vector nn = texel_guard_unit(n);
   if (!(nn[2] > 0.0))
     nn = vector(0.0, 0.0, 1.0);
   vector tt = texel_guard_unit(t);
-  if (!(length(cross(tt, nn)) > 1e-3) || !(tt[0] * tt[0] + tt[1] * tt[1] > 1e-6)) {
+  float eps = 1e-3;
+  if (!(length(cross(tt, nn)) > eps) || !(length(vector(tt[0], tt[1], 0.0)) > eps)) {
     // Any direction perpendicular to the normal: the one nearest to the cloth's x axis (or y).
     vector a = vector(1.0, 0.0, 0.0);
     if (abs(nn[0]) > 0.9)
