@@ -237,13 +237,23 @@ def load_done(args, key):
     return done["rows"]
 
 
+def source_commit():
+    """The checkout's commit (git describe: "-dirty" when files differ from it), or None."""
+    r = subprocess.run(["git", "-C", ROOT, "describe", "--always", "--dirty", "--abbrev=12"],
+                       capture_output=True, text=True)
+    return r.stdout.strip() if r.returncode == 0 and r.stdout.strip() else None
+
+
 def save_done(args, key, rows):
-    """done.json, written whole or not at all, after each fabric/tier pair."""
+    """done.json, written whole or not at all, after each fabric/tier pair. The commit is
+    recorded for readers; only the binary's hash (in key) decides what --resume keeps."""
     path = os.path.join(args.out, "done.json")
     tmp = path + ".tmp"
+    if not hasattr(args, "commit"):
+        args.commit = source_commit()
     with open(tmp, "w", encoding="utf-8") as f:
         json.dump({"settings": key, "cores": os.cpu_count(), "date": time.strftime("%Y-%m-%d"),
-                   "rows": rows}, f, indent=1)
+                   "commit": args.commit, "rows": rows}, f, indent=1)
     os.replace(tmp, path)
 
 
@@ -298,8 +308,10 @@ def merge(args):
         if twice:
             raise SystemExit(f"loom-trade: --merge: {path} measures {', '.join(twice)} again")
         rows += got
-        sources.append({"dir": os.path.abspath(d), "loom_bake_sha256": sha,
+        # Relative to --out: results kept together (in the repository, say) stay readable.
+        sources.append({"dir": os.path.relpath(d, args.out), "loom_bake_sha256": sha,
                         "cores": done.get("cores"), "date": done.get("date"),
+                        "commit": done.get("commit"),
                         "pairs": [f"{f} ({t})" for f, t in pairs]})
     args.runs, args.samples, args.res = settings["runs"], settings["samples"], settings["res"]
     args.timing_samples = settings["timing_samples"]
@@ -438,7 +450,9 @@ def write_outputs(rows, args):
     when = (f"joined {meta['date']} from earlier runs" if sources
             else f"{meta['date']}, {meta['cores']} cores")
     md = [f"# Loom's speed/accuracy trade ({when})", "",
-          f"Bake: median of {args.runs} whole-process runs. Render: node mode, {args.res}^2 px, "
+          ("Bake: one whole-process run" if args.runs == 1 else
+           f"Bake: median of {args.runs} whole-process runs") +
+          f". Render: node mode, {args.res}^2 px, "
           f"{args.samples} samples, {args.light}-lit swatch, median of {args.repeats}, as a "
           "ratio to a Principled BSDF with sheen in the same run: of the time per sample "
           f"(renders at {args.samples} and {args.timing_samples} samples: what a render costs "
@@ -452,7 +466,9 @@ def write_outputs(rows, args):
         md += [f"- `{s['dir']}` ({s.get('date') or 'date not recorded'}, "
                f"{str(s['cores']) + ' cores' if s.get('cores') else 'cores not recorded'}): "
                "loom-bake sha256 "
-               f"{s['loom_bake_sha256'][:12]}, {', '.join(s['pairs'])}" for s in sources]
+               f"{s['loom_bake_sha256'][:12]}"
+               + (f" (built from {s['commit']})" if s.get("commit") else "")
+               + f", {', '.join(s['pairs'])}" for s in sources]
         md += [""]
     md += [
           "## Median over fabrics", "",
@@ -523,8 +539,10 @@ def plot_pareto(rows, summ, args):
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
-    fig.suptitle("Loom: error against cost per tier and preset (median over fabrics; errors "
-                 "against the tier's own reference; ringed: each tier's Pareto front)",
+    # Two lines when one tier's panels are all the figure's width holds.
+    sep = "\n" if len(tiers) == 1 else " "
+    fig.suptitle("Loom: error against cost per tier and preset (median over fabrics;" + sep +
+                 "errors against the tier's own reference; ringed: each tier's Pareto front)",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(os.path.join(args.out, "pareto.png"), dpi=110)
