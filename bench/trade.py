@@ -312,6 +312,7 @@ def merge(args):
         sources.append({"dir": os.path.relpath(d, args.out), "loom_bake_sha256": sha,
                         "cores": done.get("cores"), "date": done.get("date"),
                         "commit": done.get("commit"),
+                        "lobes": os.path.exists(os.path.join(d, "lobes.png")),
                         "pairs": [f"{f} ({t})" for f, t in pairs]})
     args.runs, args.samples, args.res = settings["runs"], settings["samples"], settings["res"]
     args.timing_samples = settings["timing_samples"]
@@ -468,7 +469,9 @@ def write_outputs(rows, args):
                "loom-bake sha256 "
                f"{s['loom_bake_sha256'][:12]}"
                + (f" (built from {s['commit']})" if s.get("commit") else "")
-               + f", {', '.join(s['pairs'])}" for s in sources]
+               + f", {', '.join(s['pairs'])}"
+               + (f"; its lobe plot: `{os.path.join(s['dir'], 'lobes.png')}`" if s.get("lobes")
+                  else "") for s in sources]
         md += [""]
     md += [
           "## Median over fabrics", "",
