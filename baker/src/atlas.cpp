@@ -1,16 +1,19 @@
 #include "loom/atlas.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <openssl/evp.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <map>
 #include <optional>
 #include <cstdio>
 #include <fmt/format.h>
@@ -91,15 +94,10 @@ void write_map(const Image& img, const fs::path& dir, const std::string& name, b
 /// file, no preview image or ID manifest (their sizes are stored inside them), a data window
 /// within kMaxMapSide x 2 kMaxMapSide, and a lossless compression (none, RLE, ZIPS, ZIP, PIZ).
 /// Returns "" or the reason.
-std::string exr_header_problem(const fs::path& p) {
+std::string exr_header_problem(const std::string& bytes) {
   constexpr size_t kMaxHeader = 64 * 1024;
-  std::error_code ec;
-  const uintmax_t file_size = fs::file_size(p, ec);
-  if (ec) return "cannot be read: " + ec.message();
-  std::ifstream in(p, std::ios::binary);
-  std::string b(size_t(std::min<uintmax_t>(file_size, kMaxHeader)), '\0');
-  in.read(b.data(), std::streamsize(b.size()));
-  if (!in) return "cannot be read";
+  const uintmax_t file_size = bytes.size();
+  const std::string b = bytes.substr(0, kMaxHeader);
   const auto u8 = [&](size_t i) { return static_cast<unsigned char>(b[i]); };
   const auto i32 = [&](size_t i) {
     return int32_t(uint32_t(u8(i)) | uint32_t(u8(i + 1)) << 8 | uint32_t(u8(i + 2)) << 16 |
@@ -153,43 +151,52 @@ std::string exr_header_problem(const fs::path& p) {
   return "";
 }
 
+struct OpenedAtlasFile {
+  std::unique_ptr<Filesystem::IOMemReader> proxy;  // outlives `in` (members end in reverse)
+  std::unique_ptr<ImageInput> in;
+};
+
 /// The one OpenImageIO reader for a file of the atlas: OpenEXR for the node files (".exr"),
 /// TIFF for maketx's tiled textures (".tx"), whatever the bytes say. Choice: ImageInput::open
 /// would try every format OIIO knows when the named one fails, so a corrupted file could reach
-/// any of its readers; the atlas only ever holds these two.
-std::unique_ptr<ImageInput> open_atlas_file(const fs::path& p) {
+/// any of its readers; the atlas only ever holds these two. It reads the bytes in memory
+/// (IOMemReader), never the file again.
+OpenedAtlasFile open_atlas_file(const AtlasFile& f) {
+  const fs::path& p = f.path;
   const bool exr = p.extension() == ".exr";
   if (exr)
-    if (const std::string why = exr_header_problem(p); !why.empty())
+    if (const std::string why = exr_header_problem(f.bytes); !why.empty())
       throw std::runtime_error(fmt::format("{}: not an OpenEXR file the baker writes: {}",
                                            p.string(), why));
-  auto in = ImageInput::create(exr ? "openexr" : "tiff");
-  if (!in)
+  OpenedAtlasFile o;
+  o.proxy = std::make_unique<Filesystem::IOMemReader>(f.bytes.data(), f.bytes.size());
+  o.in = ImageInput::create(exr ? "openexr" : "tiff");
+  if (!o.in)
     throw std::runtime_error(fmt::format("{}: OpenImageIO has no {} reader: {}", p.string(),
                                          exr ? "OpenEXR" : "TIFF", OIIO::geterror()));
   ImageSpec spec;
   bool ok = false;
   try {
-    ok = in->open(p.string(), spec);
+    ok = o.in->set_ioproxy(o.proxy.get()) && o.in->open(p.string(), spec);
   } catch (const std::exception& e) {
     throw std::runtime_error(fmt::format("{}: cannot be read as {}: {}", p.string(),
                                          exr ? "OpenEXR" : "TIFF", e.what()));
   }
   if (!ok) {
-    std::string err = in->geterror();
+    std::string err = o.in->geterror();
     if (err.empty()) err = OIIO::geterror();
     throw std::runtime_error(fmt::format("{}: cannot be read as {}: {}", p.string(),
                                          exr ? "OpenEXR" : "TIFF",
                                          err.empty() ? "no reason given" : err));
   }
-  const ImageSpec& s = in->spec();
+  const ImageSpec& s = o.in->spec();
   if (s.deep || s.depth != 1 || s.width <= 0 || s.height <= 0 || s.width > kMaxMapSide ||
       s.height > 2 * kMaxMapSide || s.nchannels < 1 || s.nchannels > 4)
     throw std::runtime_error(fmt::format(
         "{}: a {}{}x{}x{} image, not what the baker writes (1 to 4 channels, at most {} x {})",
         p.string(), s.deep ? "deep " : "", s.width, s.height, s.nchannels, kMaxMapSide,
         2 * kMaxMapSide));
-  return in;
+  return o;
 }
 
 uint64_t dir_bytes(const fs::path& d) {
@@ -264,19 +271,72 @@ std::string sha256_file(const fs::path& p) {
   return hex_digest(ctx);
 }
 
-Image read_atlas_image(const fs::path& p) {
-  auto in = open_atlas_file(p);
-  const ImageSpec& s = in->spec();
+AtlasFile read_atlas_file(const fs::path& dir, const std::string& name) {
+  using Kind = AtlasFileError::Kind;
+  AtlasFile f;
+  f.path = dir / name;
+  const std::string ps = f.path.string();
+  if (!plain_filename(name))
+    throw AtlasFileError(Kind::Unreadable, fmt::format("{}: not a plain file name", ps));
+  // O_NOFOLLOW: a link as the last component fails with ELOOP; O_NONBLOCK: a FIFO does not
+  // wait for a writer (and is refused below); the directory is resolved as the user named it.
+  const int fd = ::open(ps.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == ELOOP)
+      throw AtlasFileError(Kind::SymbolicLink,
+                           fmt::format("{} is a symbolic link; an atlas's files must be regular "
+                                       "files in its directory",
+                                       ps));
+    if (err == ENOENT || err == ENOTDIR)
+      throw AtlasFileError(Kind::Missing, fmt::format("{} is missing", ps));
+    throw AtlasFileError(Kind::Unreadable,
+                         fmt::format("{} cannot be opened: {}", ps, std::strerror(err)));
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0)
+    throw AtlasFileError(Kind::Unreadable,
+                         fmt::format("{} cannot be read: {}", ps, std::strerror(errno)));
+  if (!S_ISREG(st.st_mode))
+    throw AtlasFileError(Kind::NotRegular, fmt::format("{} is not a regular file", ps));
+  if (uint64_t(st.st_size) > kMaxAtlasFileBytes)
+    throw AtlasFileError(Kind::Unreadable,
+                         fmt::format("{} holds {} bytes, more than an atlas file may ({})", ps,
+                                     uint64_t(st.st_size), kMaxAtlasFileBytes));
+  f.bytes.resize(size_t(st.st_size));
+  size_t got = 0;
+  while (got < f.bytes.size()) {
+    const ssize_t n = ::read(fd, f.bytes.data() + got, f.bytes.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0)
+      throw AtlasFileError(Kind::Unreadable,
+                           fmt::format("{} cannot be read: {}", ps, std::strerror(errno)));
+    if (n == 0) break;  // shorter than fstat said (truncated meanwhile): what was read is it
+    got += size_t(n);
+  }
+  f.bytes.resize(got);
+  return f;
+}
+
+Image read_atlas_image(const AtlasFile& f) {
+  const OpenedAtlasFile o = open_atlas_file(f);
+  ImageInput& in = *o.in;
+  const fs::path& p = f.path;
+  const ImageSpec& s = in.spec();
   Image img(s.width, s.height, s.nchannels);
   std::vector<float> tmp(img.data.size());
   bool ok = false;
   try {
-    ok = in->read_image(0, 0, 0, s.nchannels, TypeDesc::FLOAT, tmp.data());
+    ok = in.read_image(0, 0, 0, s.nchannels, TypeDesc::FLOAT, tmp.data());
   } catch (const std::exception& e) {
     throw std::runtime_error(fmt::format("{}: reading its pixels failed: {}", p.string(), e.what()));
   }
   if (!ok) {
-    std::string err = in->geterror();
+    std::string err = in.geterror();
     throw std::runtime_error(fmt::format("{}: reading its pixels failed: {}", p.string(),
                                          err.empty() ? "(no reason given)" : err));
   }
@@ -288,9 +348,17 @@ Image read_atlas_image(const fs::path& p) {
   return img;
 }
 
+std::array<int, 3> atlas_image_header(const AtlasFile& f) {
+  const OpenedAtlasFile o = open_atlas_file(f);
+  return {o.in->spec().width, o.in->spec().height, o.in->spec().nchannels};
+}
+
+Image read_atlas_image(const fs::path& p) {
+  return read_atlas_image(read_atlas_file(p.parent_path(), p.filename().string()));
+}
+
 std::array<int, 3> atlas_image_header(const fs::path& p) {
-  auto in = open_atlas_file(p);
-  return {in->spec().width, in->spec().height, in->spec().nchannels};
+  return atlas_image_header(read_atlas_file(p.parent_path(), p.filename().string()));
 }
 
 void write_atlas_map(const Image& img, const fs::path& dir, const std::string& name, bool half,
@@ -414,21 +482,29 @@ void check_raywave_fields(const json& m, std::vector<std::string>& errors) {
 
 }  // namespace
 
-std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out) {
+namespace {
+
+/// validate_atlas, keeping in `node_files` (when given) the bytes of every texture's node_file
+/// it hashed and checked, by texture name, for load_atlas to decode.
+std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifest_out,
+                                              std::map<std::string, AtlasFile>* node_files) {
   std::vector<std::string> errors;
   fs::path mp = dir / "manifest.json";
-  std::error_code ec;
-  if (fs::is_symlink(fs::symlink_status(mp, ec)))
-    return {fmt::format("{}: is a symbolic link; an atlas's files must be regular files in its "
-                        "directory",
-                        mp.string())};
-  std::ifstream in(mp);
-  if (!in) return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
+  AtlasFile manifest_file;
+  try {
+    manifest_file = read_atlas_file(dir, "manifest.json");
+  } catch (const AtlasFileError& e) {
+    if (e.kind == AtlasFileError::Kind::SymbolicLink)
+      return {fmt::format("{}: is a symbolic link; an atlas's files must be regular files in its "
+                          "directory",
+                          mp.string())};
+    if (e.kind == AtlasFileError::Kind::Missing)
+      return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
+    return {fmt::format("{}: unreadable (not an atlas): {}", mp.string(), e.what())};
+  }
   json m;
   try {
-    std::stringstream ss;
-    ss << in.rdbuf();
-    m = json::parse(ss.str());
+    m = json::parse(manifest_file.bytes);
   } catch (const std::exception& e) {
     return {fmt::format("{}: not valid JSON: {}", mp.string(), e.what())};
   }
@@ -454,30 +530,27 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
       }
       fs::path f = dir / t[key].get<std::string>();
       std::string hkey = std::string(key) == "file" ? "sha256" : "node_sha256";
-      const fs::file_status st = fs::symlink_status(f, ec);
-      if (st.type() == fs::file_type::symlink) {
-        // Choice: no symbolic links at all, to a file inside the atlas or outside it. Only the
-        // ones leaving the directory are a danger (an atlas from elsewhere reading any file the
-        // user can), but a link inside is never written by the baker, and rejecting every link
-        // needs no resolution of paths that could change between this check and the read.
-        errors.push_back(fmt::format("textures.{}.{}: {} is a symbolic link; an atlas's files "
-                                     "must be regular files in its directory",
-                                     name, key, f.string()));
-        continue;
-      }
-      if (!fs::is_regular_file(st)) {
-        errors.push_back(fmt::format("textures.{}: {} is missing{}", name, f.string(),
-                                     fs::exists(st) ? " (not a regular file)" : ""));
-        continue;
-      }
-      std::string digest;
+      // Choice: no symbolic links at all, to a file inside the atlas or outside it. Only the
+      // ones leaving the directory are a danger (an atlas from elsewhere reading any file the
+      // user can), but a link inside is never written by the baker, and refusing every link at
+      // the read itself (read_atlas_file: O_NOFOLLOW) leaves no window for a swap.
+      AtlasFile file;
       try {
-        digest = sha256_file(f);
-      } catch (const std::runtime_error& e) {
-        errors.push_back(fmt::format("textures.{}: {}", name, e.what()));
+        file = read_atlas_file(dir, t[key].get<std::string>());
+      } catch (const AtlasFileError& e) {
+        using Kind = AtlasFileError::Kind;
+        if (e.kind == Kind::SymbolicLink)
+          errors.push_back(fmt::format("textures.{}.{}: {} is a symbolic link; an atlas's files "
+                                       "must be regular files in its directory",
+                                       name, key, f.string()));
+        else if (e.kind == Kind::Missing || e.kind == Kind::NotRegular)
+          errors.push_back(fmt::format("textures.{}: {} is missing{}", name, f.string(),
+                                       e.kind == Kind::NotRegular ? " (not a regular file)" : ""));
+        else
+          errors.push_back(fmt::format("textures.{}: {}", name, e.what()));
         continue;
       }
-      if (!t.contains(hkey) || !t[hkey].is_string() || digest != t[hkey]) {
+      if (!t.contains(hkey) || !t[hkey].is_string() || sha256_string(file.bytes) != t[hkey]) {
         errors.push_back(
             fmt::format("textures.{}: {} does not match its sha256 (corrupted or changed)", name,
                         f.string()));
@@ -485,16 +558,19 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
       }
       std::array<int, 3> s{};
       try {
-        s = atlas_image_header(f);
+        s = atlas_image_header(file);
       } catch (const std::runtime_error& e) {
         errors.push_back(fmt::format("textures.{}: {}", name, e.what()));
         continue;
       }
       if (!t.contains("size") || t["size"] != json::array({s[0], s[1]}) ||
           !t.contains("channels") || !t["channels"].is_array() ||
-          int(t["channels"].size()) != s[2])
+          int(t["channels"].size()) != s[2]) {
         errors.push_back(fmt::format("textures.{}: {} is {}x{}x{}, the manifest says otherwise",
                                      name, f.string(), s[0], s[1], s[2]));
+        continue;
+      }
+      if (node_files && std::string(key) == "node_file") (*node_files)[name] = std::move(file);
     }
   }
   // The contract the evaluators rely on: every map, four channels, one size for all maps, and
@@ -611,6 +687,12 @@ std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out)
   }
   if (manifest_out) *manifest_out = m;
   return errors;
+}
+
+}  // namespace
+
+std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out) {
+  return validate_atlas_files(dir, manifest_out, nullptr);
 }
 
 std::string raywave_simulation_key(json canon, const std::string& colour,
@@ -1199,7 +1281,9 @@ const Image& Atlas::map(const std::string& name) const {
 
 Atlas load_atlas(const fs::path& dir) {
   Atlas a;
-  auto errors = validate_atlas(dir, &a.manifest);
+  // The node files' bytes validation hashed are the ones decoded: no second read.
+  std::map<std::string, AtlasFile> node_files;
+  auto errors = validate_atlas_files(dir, &a.manifest, &node_files);
   if (!errors.empty()) {
     std::string msg = fmt::format("{} is not a valid atlas:", dir.string());
     for (auto& e : errors) msg += "\n  " + e;
@@ -1208,7 +1292,9 @@ Atlas load_atlas(const fs::path& dir) {
   for (auto& [name, t] : a.manifest["textures"].items()) {
     Image img;
     try {
-      img = read_atlas_image(dir / t["node_file"].get<std::string>());
+      AtlasFile& file = node_files.at(name);
+      img = read_atlas_image(file);
+      file.bytes = std::string();  // each file's bytes are let go once decoded
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: textures.{}: {}", dir.string(), name, e.what()));
     }

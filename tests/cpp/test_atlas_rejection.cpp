@@ -2,12 +2,14 @@
 // behind a matching hash, path fields that leave the atlas directory, symbolic links, and
 // ray-wave manifests whose fields have the wrong type (validate_atlas's contract, atlas.h).
 #include <fmt/format.h>
+#include <sys/stat.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
 #include <functional>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -296,6 +298,49 @@ TEST(AtlasRejection, SymbolicLinksAreRefusedInsideAndOutside) {
   const fs::path link = loom::test::scratch("linked_dir.atlas");
   fs::create_directory_symlink(plain, link);
   EXPECT_TRUE(loom::validate_atlas(link).empty()) << joined(loom::validate_atlas(link));
+}
+
+TEST(AtlasRejection, AtlasFilesAreReadOnceWithoutFollowingLinks) {
+  // read_atlas_file: the refusal happens at the read itself (O_NOFOLLOW), not by a check before
+  // it, and what is decoded is the bytes read then, whatever the directory holds afterwards.
+  using Kind = loom::AtlasFileError::Kind;
+  const fs::path d = copy_atlas_dir(draft_atlas("plain", "surface"), "read_once.atlas");
+  const auto kind_of = [&](const std::string& name) {
+    try {
+      (void)loom::read_atlas_file(d, name);
+    } catch (const loom::AtlasFileError& e) {
+      EXPECT_TRUE(has(e.what(), (d / name).string())) << e.what();
+      return int(e.kind);
+    }
+    return -1;
+  };
+  fs::create_symlink("ply_frame.exr", d / "link.exr");
+  EXPECT_EQ(kind_of("link.exr"), int(Kind::SymbolicLink));
+  EXPECT_EQ(kind_of("absent.exr"), int(Kind::Missing));
+  fs::create_directory(d / "dir.exr");
+  EXPECT_EQ(kind_of("dir.exr"), int(Kind::NotRegular));
+  // A FIFO with no writer: refused at once (a blocking open would wait for ever).
+  ASSERT_EQ(::mkfifo((d / "fifo.exr").c_str(), 0600), 0);
+  EXPECT_EQ(kind_of("fifo.exr"), int(Kind::NotRegular));
+  EXPECT_EQ(kind_of("../read_once.atlas"), int(Kind::Unreadable));  // not a plain file name
+
+  // The bytes are the file's, and decoding them reads nothing again: the file is replaced by
+  // a link to another map after the read, and the image is still the first file's.
+  const loom::AtlasFile f = loom::read_atlas_file(d, "ply_frame.exr");
+  {
+    std::ifstream in(d / "ply_frame.exr", std::ios::binary);
+    const std::string disk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_EQ(f.bytes, disk);
+  }
+  const loom::Image before = loom::read_atlas_image(d / "ply_frame.exr");
+  fs::remove(d / "ply_frame.exr");
+  fs::create_symlink("ply_normal.exr", d / "ply_frame.exr");
+  const loom::Image after = loom::read_atlas_image(f);
+  EXPECT_EQ(after.width, before.width);
+  EXPECT_EQ(after.data, before.data);
+  EXPECT_NE(loom::read_atlas_image(d / "ply_normal.exr").data, before.data)
+      << "the test needs two different maps";
+  EXPECT_THROW((void)loom::read_atlas_image(d / "ply_frame.exr"), loom::AtlasFileError);
 }
 
 TEST(AtlasRejection, RaywaveFieldsOfTheWrongTypeAreRefusedNamingTheField) {

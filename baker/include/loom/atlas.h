@@ -7,6 +7,8 @@
 // Publication is atomic: the atlas is written to a temporary sibling and renamed into place.
 #pragma once
 #include <array>
+#include <cstdint>
+#include <stdexcept>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -67,11 +69,42 @@ BakeResult bake_atlas(FabricSpec spec, const std::filesystem::path& dir, const B
 /// plain file name in the atlas directory: no '/', '\\', "." or "..", so no absolute path either.
 /// The files and manifest.json must be regular files, never symbolic links, neither to a file
 /// outside the directory (which would read any file the user can) nor to one inside (the baker
-/// never writes one, and refusing all links needs no resolution of paths that could change
-/// between the check and the read). The atlas directory itself may be reached through a link.
+/// never writes one, and refusing all links needs no resolution of paths). Each file is read
+/// once (read_atlas_file, which refuses a link at the open itself); the hash and the header are
+/// checked on those bytes, and load_atlas decodes the same bytes, so nothing swapped in after a
+/// check is ever read. The atlas directory itself may be reached through a link.
 /// The textures' formats: .exr files are read as OpenEXR only and .tx files as TIFF only.
 std::vector<std::string> validate_atlas(const std::filesystem::path& dir,
                                         nlohmann::json* manifest_out = nullptr);
+
+/// One file of an atlas, read whole and once: what validate_atlas hashes is what load_atlas
+/// decodes (no window between a check and a read in which the file could be swapped).
+struct AtlasFile {
+  std::filesystem::path path;  ///< for messages
+  std::string bytes;
+};
+
+/// Why read_atlas_file refused a file; what() names the file and says so.
+struct AtlasFileError : std::runtime_error {
+  enum class Kind { Missing, SymbolicLink, NotRegular, Unreadable } kind;
+  AtlasFileError(Kind k, const std::string& what) : std::runtime_error(what), kind(k) {}
+};
+
+/// Reads `name` (a plain file name) in the atlas directory `dir` with open(2)'s O_NOFOLLOW on the
+/// name itself, so a symbolic link is refused at the read, not only by an earlier check; the
+/// directory may be reached through a link. Throws AtlasFileError naming the file and why:
+/// missing, a symbolic link, not a regular file (a FIFO is opened without blocking and refused),
+/// larger than kMaxAtlasFileBytes, or a read error.
+AtlasFile read_atlas_file(const std::filesystem::path& dir, const std::string& name);
+
+/// The largest atlas file read_atlas_file reads: 4 GiB (a float map of kMaxMapSide x 2
+/// kMaxMapSide x 4 channels, uncompressed, is 512 MiB).
+inline constexpr uint64_t kMaxAtlasFileBytes = uint64_t(4) << 30;
+
+/// read_atlas_image and atlas_image_header on bytes already read (the path overloads read the
+/// file with read_atlas_file first); the format comes from the file name's extension.
+Image read_atlas_image(const AtlasFile& file);
+std::array<int, 3> atlas_image_header(const AtlasFile& file);
 
 /// Reads an atlas map or table file (a node_file, OpenEXR) into an Image, rows bottom-up (flipped
 /// back from the file). Throws std::runtime_error naming the file for anything but an image the
