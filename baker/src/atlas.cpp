@@ -151,8 +151,28 @@ std::string exr_header_problem(const std::string& bytes) {
   return "";
 }
 
+/// OpenImageIO 2.4's IOMemReader with its bounds made safe: its seek takes any offset and its
+/// pread tests `size + offset > buffer size`, which wraps for a negative offset, so a file whose
+/// OpenEXR line-offset table holds 2^64 - 1 (OpenEXR only refuses 0) made it copy from before
+/// the buffer (found in review; AtlasRejection.NegativeOffsetsInAFileAreRefused keeps it).
+struct BoundedMemReader : Filesystem::IOMemReader {
+  using Filesystem::IOMemReader::IOMemReader;
+  bool seek(int64_t offset) override {
+    return offset >= 0 && uint64_t(offset) <= size() && Filesystem::IOMemReader::seek(offset);
+  }
+  size_t pread(void* buf, size_t n, int64_t offset) override {
+    if (offset < 0 || uint64_t(offset) >= size()) return 0;
+    return Filesystem::IOMemReader::pread(buf, std::min(n, size() - size_t(offset)), offset);
+  }
+  size_t read(void* buf, size_t n) override {  // through the bounded pread, whatever the base does
+    const size_t got = pread(buf, n, m_pos);
+    m_pos += int64_t(got);
+    return got;
+  }
+};
+
 struct OpenedAtlasFile {
-  std::unique_ptr<Filesystem::IOMemReader> proxy;  // outlives `in` (members end in reverse)
+  std::unique_ptr<BoundedMemReader> proxy;  // outlives `in` (members end in reverse)
   std::unique_ptr<ImageInput> in;
 };
 
@@ -169,7 +189,7 @@ OpenedAtlasFile open_atlas_file(const AtlasFile& f) {
       throw std::runtime_error(fmt::format("{}: not an OpenEXR file the baker writes: {}",
                                            p.string(), why));
   OpenedAtlasFile o;
-  o.proxy = std::make_unique<Filesystem::IOMemReader>(f.bytes.data(), f.bytes.size());
+  o.proxy = std::make_unique<BoundedMemReader>(f.bytes.data(), f.bytes.size());
   o.in = ImageInput::create(exr ? "openexr" : "tiff");
   if (!o.in)
     throw std::runtime_error(fmt::format("{}: OpenImageIO has no {} reader: {}", p.string(),
@@ -283,7 +303,8 @@ AtlasFile read_atlas_file(const fs::path& dir, const std::string& name) {
   const int fd = ::open(ps.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) {
     const int err = errno;
-    if (err == ELOOP)
+    struct stat lst {};
+    if (err == ELOOP && ::lstat(ps.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode))
       throw AtlasFileError(Kind::SymbolicLink,
                            fmt::format("{} is a symbolic link; an atlas's files must be regular "
                                        "files in its directory",
@@ -303,11 +324,17 @@ AtlasFile read_atlas_file(const fs::path& dir, const std::string& name) {
                          fmt::format("{} cannot be read: {}", ps, std::strerror(errno)));
   if (!S_ISREG(st.st_mode))
     throw AtlasFileError(Kind::NotRegular, fmt::format("{} is not a regular file", ps));
+  (void)::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);  // reads of a file may block
   if (uint64_t(st.st_size) > kMaxAtlasFileBytes)
     throw AtlasFileError(Kind::Unreadable,
                          fmt::format("{} holds {} bytes, more than an atlas file may ({})", ps,
                                      uint64_t(st.st_size), kMaxAtlasFileBytes));
-  f.bytes.resize(size_t(st.st_size));
+  try {
+    f.bytes.resize(size_t(st.st_size));
+  } catch (const std::bad_alloc&) {
+    throw AtlasFileError(Kind::Unreadable, fmt::format("{}: no memory for its {} bytes", ps,
+                                                       uint64_t(st.st_size)));
+  }
   size_t got = 0;
   while (got < f.bytes.size()) {
     const ssize_t n = ::read(fd, f.bytes.data() + got, f.bytes.size() - got);
@@ -500,7 +527,7 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
                           mp.string())};
     if (e.kind == AtlasFileError::Kind::Missing)
       return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
-    return {fmt::format("{}: unreadable (not an atlas): {}", mp.string(), e.what())};
+    return {fmt::format("{} (not an atlas)", e.what())};
   }
   json m;
   try {
@@ -1280,21 +1307,35 @@ const Image& Atlas::map(const std::string& name) const {
 }
 
 Atlas load_atlas(const fs::path& dir) {
-  Atlas a;
   // The node files' bytes validation hashed are the ones decoded: no second read.
+  json manifest;
   std::map<std::string, AtlasFile> node_files;
-  auto errors = validate_atlas_files(dir, &a.manifest, &node_files);
+  auto errors = validate_atlas_files(dir, &manifest, &node_files);
   if (!errors.empty()) {
     std::string msg = fmt::format("{} is not a valid atlas:", dir.string());
     for (auto& e : errors) msg += "\n  " + e;
     throw std::runtime_error(msg);
   }
+  return atlas_from_files(dir, std::move(manifest), std::move(node_files));
+}
+
+std::vector<std::string> validate_atlas(const fs::path& dir, json* manifest_out,
+                                        std::map<std::string, AtlasFile>* node_files) {
+  return validate_atlas_files(dir, manifest_out, node_files);
+}
+
+Atlas atlas_from_files(const fs::path& dir, json manifest,
+                       std::map<std::string, AtlasFile> node_files) {
+  Atlas a;
+  a.manifest = std::move(manifest);
   for (auto& [name, t] : a.manifest["textures"].items()) {
     Image img;
     try {
-      AtlasFile& file = node_files.at(name);
-      img = read_atlas_image(file);
-      file.bytes = std::string();  // each file's bytes are let go once decoded
+      const auto it = node_files.find(name);
+      if (it == node_files.end())
+        throw std::runtime_error("its node_file was not read (validate the atlas first)");
+      img = read_atlas_image(it->second);
+      it->second.bytes = std::string();  // each file's bytes are let go once decoded
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: textures.{}: {}", dir.string(), name, e.what()));
     }

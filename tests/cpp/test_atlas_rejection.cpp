@@ -7,10 +7,12 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -341,6 +343,60 @@ TEST(AtlasRejection, AtlasFilesAreReadOnceWithoutFollowingLinks) {
   EXPECT_NE(loom::read_atlas_image(d / "ply_normal.exr").data, before.data)
       << "the test needs two different maps";
   EXPECT_THROW((void)loom::read_atlas_image(d / "ply_frame.exr"), loom::AtlasFileError);
+
+  // load_atlas's two steps: a map validated, then swapped on disk (here: a link to another map,
+  // which validation would refuse), comes out as the map that was validated.
+  const fs::path d2 = copy_atlas_dir(draft_atlas("plain", "surface"), "read_once2.atlas");
+  nlohmann::json m;
+  std::map<std::string, loom::AtlasFile> files;
+  ASSERT_EQ(joined(loom::validate_atlas(d2, &m, &files)), "");
+  fs::remove(d2 / "ply_frame.exr");
+  fs::create_symlink("ply_normal.exr", d2 / "ply_frame.exr");
+  ASSERT_FALSE(loom::validate_atlas(d2).empty());
+  const loom::Atlas a = loom::atlas_from_files(d2, m, files);
+  EXPECT_EQ(a.map("ply_frame").data, before.data);
+  EXPECT_NE(a.map("ply_normal").data, before.data);
+}
+
+TEST(AtlasRejection, NegativeOffsetsInAFileAreRefused) {
+  // OpenEXR refuses a line offset of 0 only, so an offset of 2^64 - 1 reaches the reader as a
+  // seek to -1; OpenImageIO 2.4's memory reader would then copy from before its buffer (an
+  // AddressSanitizer report here without atlas.cpp's BoundedMemReader). Offsets past the end
+  // and before the header are refused as well. Each: an error naming the file, never a read
+  // outside the bytes.
+  const fs::path d = copy_atlas_dir(draft_atlas("plain", "surface"), "offsets.atlas");
+  const loom::AtlasFile good = loom::read_atlas_file(d, "ply_frame.exr");
+  const std::string& b = good.bytes;
+  // The end of the header: attributes (name, type, int32 size, value) up to a NUL name.
+  size_t i = 8;
+  while (i < b.size() && b[i] != '\0') {
+    const size_t name_end = b.find('\0', i), type_end = b.find('\0', name_end + 1);
+    ASSERT_NE(type_end, std::string::npos);
+    int32_t size = 0;
+    std::memcpy(&size, b.data() + type_end + 1, 4);
+    i = type_end + 5 + size_t(size);
+  }
+  const size_t table = i + 1;  // the line-offset table: one uint64 per chunk
+  ASSERT_LT(table + 16, b.size());
+  // The first chunk's offset: refused. A later chunk's: OpenEXR reads the chunks in order, and
+  // a seek the reader refuses leaves it where the previous chunk ended, so the image may come
+  // out whole; either way nothing outside the bytes is read (AddressSanitizer in the sanitizer
+  // build) and an error names the file.
+  for (const uint64_t bad : {~uint64_t(0), uint64_t(1) << 63, uint64_t(b.size()) + 1000,
+                             uint64_t(3)}) {
+    for (const size_t chunk : {size_t(0), size_t(1)}) {
+      loom::AtlasFile f = good;
+      std::memcpy(f.bytes.data() + table + 8 * chunk, &bad, 8);
+      try {
+        const loom::Image img = loom::read_atlas_image(f);
+        EXPECT_NE(chunk, 0u) << "offset " << bad << " of the first chunk was read";
+        EXPECT_EQ(img.data.size(), size_t(img.width) * size_t(img.height) * size_t(img.channels));
+      } catch (const std::runtime_error& e) {
+        EXPECT_TRUE(has(e.what(), good.path.string())) << e.what();
+      }
+    }
+  }
+  EXPECT_EQ(loom::read_atlas_image(good).width, loom::atlas_image_header(good)[0]);
 }
 
 TEST(AtlasRejection, RaywaveFieldsOfTheWrongTypeAreRefusedNamingTheField) {

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -97,12 +98,15 @@ struct AtlasFileError : std::runtime_error {
 /// larger than kMaxAtlasFileBytes, or a read error.
 AtlasFile read_atlas_file(const std::filesystem::path& dir, const std::string& name);
 
-/// The largest atlas file read_atlas_file reads: 4 GiB (a float map of kMaxMapSide x 2
-/// kMaxMapSide x 4 channels, uncompressed, is 512 MiB).
-inline constexpr uint64_t kMaxAtlasFileBytes = uint64_t(4) << 30;
+/// The largest atlas file read_atlas_file reads, 1 GiB: a float map of kMaxMapSide x 2
+/// kMaxMapSide x 4 channels is 512 MiB uncompressed, its mip-mapped .tx about 4/3 of that. The
+/// file is read whole before its hash is checked, so this bounds what a manifest naming a huge
+/// (or sparse) file can make validation allocate.
+inline constexpr uint64_t kMaxAtlasFileBytes = uint64_t(1) << 30;
 
-/// read_atlas_image and atlas_image_header on bytes already read (the path overloads read the
-/// file with read_atlas_file first); the format comes from the file name's extension.
+/// read_atlas_image and atlas_image_header on bytes already read; the format comes from the file
+/// name's extension. The path overloads below read the file with read_atlas_file first, so they
+/// too refuse a symbolic link and anything but a regular file.
 Image read_atlas_image(const AtlasFile& file);
 std::array<int, 3> atlas_image_header(const AtlasFile& file);
 
@@ -135,7 +139,21 @@ struct Atlas {
   const Image& map(const std::string& name) const;
 };
 
-/// Loads (after validating) an atlas; throws std::runtime_error listing the problems.
+/// Loads (after validating) an atlas; throws std::runtime_error listing the problems. It is
+/// the two steps below: validate_atlas keeping the node files' bytes, then atlas_from_files
+/// decoding those very bytes.
 Atlas load_atlas(const std::filesystem::path& dir);
+
+/// validate_atlas, also handing over the bytes of every texture's node_file it hashed and
+/// checked, by texture name.
+std::vector<std::string> validate_atlas(const std::filesystem::path& dir,
+                                        nlohmann::json* manifest_out,
+                                        std::map<std::string, AtlasFile>* node_files);
+
+/// An Atlas from a manifest and node files validate_atlas accepted and handed over: decodes the
+/// bytes it is given and reads nothing from `dir` (named in messages only). Throws
+/// std::runtime_error naming the texture.
+Atlas atlas_from_files(const std::filesystem::path& dir, nlohmann::json manifest,
+                       std::map<std::string, AtlasFile> node_files);
 
 }  // namespace loom
