@@ -596,15 +596,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.link(0.0, gl.inputs["Rotation"])
         b.link(nc_w, gl.inputs["Normal"])
         b.link(t_w, gl.inputs["Tangent"])
-        total = None
-        for node in (transp, d_np, d_ns, t_np, t_ns, gl):
-            if total is None:
-                total = node.outputs["BSDF"]
-                continue
-            add = b.new("ShaderNodeAddShader")
-            b.connect(total, add.inputs[0])
-            b.connect(node.outputs["BSDF"], add.inputs[1])
-            total = add.outputs["Shader"]
+        total = b.add_shaders(n.outputs["BSDF"] for n in (transp, d_np, d_ns, t_np, t_ns, gl))
         gout = b.new("NodeGroupOutput")
         b.connect(total, gout.inputs["BSDF"])
 

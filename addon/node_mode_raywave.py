@@ -74,13 +74,13 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both). texel_guard.h is transcribed in node_mode.py and fingerprinted there.
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "b2296fd382f159b2",
+    "include/loom/raywave_lobes.h": "095b71708b0b5ffb",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "4c54f8d159146723",
+    "loom_cloth_raywave.osl": "7f3f3ce962b1d515",
 }
 
 
@@ -376,6 +376,24 @@ def raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open_, vis_v, vis_z
 def raywave_lobe_forward(integral, tint, b_refl):
     """raywave_lobes.h: raywave_lobe_forward(integral, tint, b_refl) = integral (1 - b_refl) tint."""
     return tint * (integral * (1.0 - b_refl))
+
+
+def raywave_lobe_energy(integral, tint, open_, vis_v, vis_z, k_f, s, b_refl):
+    """raywave_lobes.h: raywave_lobe_energy(integral, tint, open, vis_v, vis_z, k_f, s, b_refl)
+    = integral open tint (b_refl vis_v vis_z + (1 - b_refl) (1 - s) k_f)."""
+    up = b_refl * vis_v * vis_z
+    return tint * (k_f * ((1.0 - b_refl) * (1.0 - s)) + vec(up, up, up)) * (integral * open_)
+
+
+def raywave_energy_budget(x, used, open_):
+    """raywave_lobes.h: raywave_energy_budget(x, used, open): per channel c, 1, or
+    max(open - used[c], 0) / x[c] where x[c] > 0 and used[c] + x[c] > open."""
+    k = []
+    for c in ("x", "y", "z"):
+        xc, uc = getattr(x, c), getattr(used, c)
+        over = (xc > 0.0) * ((uc + xc) > open_)
+        k.append(select(over, max_(open_ - uc, 0.0) / xc, 1.0))
+    return vec(*k)
 
 
 # ======================================================================= diffraction_table.h,
@@ -836,7 +854,7 @@ LOBE_INPUTS = (
     *((f"hor{k}", "NodeSocketFloat") for k in range(8)), ("open", "NodeSocketFloat"),
     ("vis_v", "NodeSocketFloat"), ("k_f", "NodeSocketColor"),
     ("s", "NodeSocketFloat"), ("theta_i", "NodeSocketFloat"), ("noise_instance", "NodeSocketFloat"),
-    ("noise_shift", "NodeSocketFloat"))
+    ("noise_shift", "NodeSocketFloat"), ("used", "NodeSocketColor"))
 
 
 def _new_group(name: str, inputs, outputs, description: str):
@@ -872,9 +890,13 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
     noise_lobe_uv): two look-ups, one per blur level, blended.
 
     Its second output, ``forward``, is the lobe's part of the point's forward light T
-    (raywave_lobe_forward), which the layers' closures sum (double_layer_factors.h)."""
+    (raywave_lobe_forward), which the layers' closures sum (double_layer_factors.h). The lobe
+    takes its share of the yarn's energy budget after ``used``, what the lobes before it send
+    out (raywave_energy_budget, on raywave_lobe_energy with the noise); its third output,
+    ``energy``, is what it sends out, which the next lobe's ``used`` adds."""
     group = _new_group(name, LOBE_INPUTS, (("BSDF", "NodeSocketShader"),
-                                           ("forward", "NodeSocketColor")),
+                                           ("forward", "NodeSocketColor"),
+                                           ("energy", "NodeSocketColor")),
                        "Loom ray-wave: one fitted lobe as Cycles closures (raywave_lobes.h)")
     b = Builder(group)
     eta = K["LOOM_RAYWAVE_ETA"]
@@ -909,6 +931,8 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
             integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["k_f"],
             i["s"], b_refl, b_refr, K)
         forward = raywave_lobe_forward(integral, i["tint"], b_refl)
+        energy = raywave_lobe_energy(integral, i["tint"], i["open"], i["vis_v"], vis_z,
+                                     i["k_f"], i["s"], b_refl)
     if noise_image is not None:
         with b.block("speckle_noise.h: noise_lobe_uv, the noise at two blur levels (Eq. S.39)"):
             _, _, lz = asg_frame(i["p0"].x, i["p0"].y, i["p0"].z)
@@ -927,6 +951,13 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
             w_refl = w_refl * nz
             w_refr = w_refr * nz
             w_transl = w_transl * nz
+            energy = energy * nz
+    with b.block("raywave_lobes.h: raywave_energy_budget after the lobes before"):
+        budget = b.label(raywave_energy_budget(energy, i["used"], i["open"]), "budget")
+        w_refl = w_refl * budget
+        w_refr = w_refr * budget
+        w_transl = w_transl * budget
+        energy = energy * budget
     with b.block("closures"):
         T, B, Nw = i["T"], i["B"], i["N"]
         nr = normalize(T * Nr.x + B * Nr.y + Nw * Nr.z)
@@ -949,15 +980,11 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         tr = b.new("ShaderNodeBsdfTranslucent", label="translucent(N)")
         b.link(w_transl, tr.inputs["Color"])
         b.link(Nw, tr.inputs["Normal"])
-        add = b.new("ShaderNodeAddShader")
-        b.connect(gl.outputs["BSDF"], add.inputs[0])
-        b.connect(rf.outputs["BSDF"], add.inputs[1])
-        add2 = b.new("ShaderNodeAddShader")
-        b.connect(add.outputs["Shader"], add2.inputs[0])
-        b.connect(tr.outputs["BSDF"], add2.inputs[1])
         gout = b.new("NodeGroupOutput")
-        b.connect(add2.outputs["Shader"], gout.inputs["BSDF"])
+        b.connect(b.add_shaders((gl.outputs["BSDF"], rf.outputs["BSDF"], tr.outputs["BSDF"])),
+                  gout.inputs["BSDF"])
         b.link(forward, gout.inputs["forward"])
+        b.link(energy, gout.inputs["energy"])
     b.layout()
     return group
 
@@ -1089,6 +1116,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
 
     # ---------------------------------------------------------------- lobes
     lobe_outputs = []
+    used = (0.0, 0.0, 0.0)  # what the lobes so far send out (raywave_energy_budget)
 
     def lobe_texels(part_name, l, lobes):
         """p0, mu1, p1, tint of lobe l for the yarn at this point: each yarn's texels, selected
@@ -1122,10 +1150,11 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                         **{f"hor{k}": hor[k] for k in range(8)}, "open": open_,
                         "vis_v": vis_v, "k_f": k_f, "s": g["blend"],
                         "theta_i": theta_i, "noise_instance": noise_inst,
-                        "noise_shift": noise_shift}
+                        "noise_shift": noise_shift, "used": used}
                 for n, _kind in LOBE_INPUTS:
                     b.link(args[n], node.inputs[n])
                 lobe_outputs.append(node)
+                used = used + b.vector_socket(node.outputs["energy"])
 
     # ---------------------------------------------------------------- energy residual
     with b.block("Energy residual (raywave_lobes.h: raywave_residual_uv, weights)"):
@@ -1151,6 +1180,11 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, k_f, g["blend"])
                            + raywave_layer_translucent_weight(t_fwd, open_, k_f, g["blend"]),
                            "residual and layers' translucent weight")
+        # After the lobes, within what they left of the budget (raywave_energy_budget).
+        rest = b.label(raywave_energy_budget(w_diffuse + w_transl, used, open_),
+                       "budget of the residual and the layers")
+        w_diffuse = w_diffuse * rest
+        w_transl = w_transl * rest
 
     # ---------------------------------------------------------------- gap diffraction
     gap = 1.0 - open_
@@ -1226,20 +1260,13 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         transp = b.new("ShaderNodeBsdfTransparent",
                        label="transparent() * (1 - open), less the sampled diffraction")
         b.link(gap_delta, transp.inputs["Color"])
-        total = None
         # The lobes first: Cycles' SVM compiler emits the closures of an Add Shader chain in
         # order, and a value stays on its stack (255 floats) until its last user is compiled.
         # The layers' closures read every lobe's `forward`; compiled after the lobes, they keep
         # only those few values alive, not every lobe's look-ups (see build_lobe_group).
-        for out in (*(n.outputs["BSDF"] for n in lobe_outputs), *gap_lobes,
-                    transp.outputs["BSDF"], tr.outputs["BSDF"], dif_node.outputs["BSDF"]):
-            if total is None:
-                total = out
-                continue
-            add = b.new("ShaderNodeAddShader")
-            b.connect(total, add.inputs[0])
-            b.connect(out, add.inputs[1])
-            total = add.outputs["Shader"]
+        total = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs), *gap_lobes,
+                               transp.outputs["BSDF"], tr.outputs["BSDF"],
+                               dif_node.outputs["BSDF"]))
         gout = b.new("NodeGroupOutput")
         b.connect(total, gout.inputs["BSDF"])
 

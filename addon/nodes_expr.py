@@ -92,6 +92,20 @@ class Builder:
         self.tree.links.new(from_socket, to_socket)
         self._inputs.setdefault(to_socket.node.name, set()).add(from_socket.node.name)
 
+    def add_shaders(self, shaders):
+        """The sum of shader output sockets as a chain of Add Shader nodes, in order (Cycles'
+        SVM compiles the closures of such a chain in that order); returns the last output."""
+        total = None
+        for out in shaders:
+            if total is None:
+                total = out
+                continue
+            add = self.new("ShaderNodeAddShader")
+            self.connect(total, add.inputs[0])
+            self.connect(out, add.inputs[1])
+            total = add.outputs["Shader"]
+        return total
+
     def label(self, expr: Expr, text: str) -> Expr:
         """Name a quantity: the label of the node that computes it (shown on hidden nodes)."""
         if isinstance(expr, Expr):

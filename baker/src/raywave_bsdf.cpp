@@ -350,6 +350,10 @@ struct RaywavePoint::Impl {
   std::vector<std::array<float, 3>> refr_w;
   std::array<float, 3> transl_w{}, diffuse_w{};
   std::vector<RaywaveClosure> list;
+  /// model: f_refl's lobes per channel with raywave_energy_budget's factors in their amplitudes
+  /// (high's are scaled in place), and the factor of the residual's and the layers' light
+  std::array<std::vector<AsgLobe>, 3> refl_rgb;
+  std::array<float, 3> rest_scale{1, 1, 1};
   // speckle noise (speckle_noise.h): the point's instance and rotation, the beam in ply space
   const SpeckleNoise* noise = nullptr;
   int noise_instance = 0;
@@ -454,20 +458,58 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     // channel (they scale amplitudes only).
     const Vec3d n_ply{q.xp.z, q.yp.z, q.t.z};
     std::array<double, 3> fwd{0, 0, 0};
-    for (const AsgLobe& l : q.refl) {
-      const double below = 1 - asg_side_fraction(l, n_ply, kModelFractionSteps);
-      for (int c = 0; c < 3; ++c) fwd[size_t(c)] += below * asg_integral(l.mu1, l.mu2, l.c);
-    }
-    for (size_t l = 0; l < q.high[0].size(); ++l) {
-      const double below = 1 - asg_side_fraction(q.high[0][l], n_ply, kModelFractionSteps);
-      for (int c = 0; c < 3; ++c) {
-        const AsgLobe& lc = q.high[c][l];
-        fwd[size_t(c)] += below * asg_integral(lc.mu1, lc.mu2, lc.c);
-      }
-    }
-    for (int c = 0; c < 3; ++c) {
+    // raywave_energy_budget in the closures' order, with each lobe's energy with the noise as
+    // the closures take it: the lobe's integral per channel, its share above the plane for
+    // b_refl, the visibility and the noise at its centre (the tiles at the blur of its width;
+    // the model's own noise, the tile at each direction, averages to about that over the lobe).
+    // The factors scale the lobes' amplitudes, per channel.
+    for (int c = 0; c < 3; ++c)
       layer_factor_pair(double_layer_at(d.layers[side], q.V, sig_layers[size_t(c)]),
                         q.k_b[size_t(c)], q.k_f[size_t(c)]);
+    const vec3 kf(q.k_f[0], q.k_f[1], q.k_f[2]), kb(q.k_b[0], q.k_b[1], q.k_b[2]);
+    vec3 used(0, 0, 0);
+    auto budget = [&](const AsgLobe& l, vec3 integral, bool is_refl, double above) {
+      vec3 lx, ly, lz;
+      asg_frame(float(l.theta_z), float(l.phi_z), float(l.phi_xy), lx, ly, lz);
+      const float vis_z = q.back ? 1.0f : raywave_lobe_visibility(
+                                              raywave_from_ply(lz, q.xp, q.yp, q.t), q.hor);
+      vec3 en = raywave_lobe_energy(1.0f, integral, q.open, q.vis_v, vis_z, kf, q.s,
+                                    float(above));
+      if (q.noise) {
+        float u, v0, v1, t, n0[4], n1[4];
+        noise_lobe_uv(lz, q.wi_ply, is_refl ? 1 : 0, float(l.mu1), float(l.mu2),
+                      q.noise_instance, q.noise_shift, q.noise->instances, u, v0, v1, t);
+        const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
+        sample_periodic(img, u, v0, n0);
+        sample_periodic(img, u, v1, n1);
+        en = en * vec3(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
+                       n0[2] * (1 - t) + n1[2] * t);
+      }
+      const vec3 k = raywave_energy_budget(en, used, q.open);
+      used = used + en * k;
+      return k;
+    };
+    for (int c = 0; c < 3; ++c) q.refl_rgb[size_t(c)] = q.refl;
+    for (size_t l = 0; l < q.refl.size(); ++l) {
+      const AsgLobe& lobe = q.refl[l];
+      const double above = asg_side_fraction(lobe, n_ply, kModelFractionSteps);
+      const double integral = asg_integral(lobe.mu1, lobe.mu2, lobe.c);
+      for (int c = 0; c < 3; ++c) fwd[size_t(c)] += (1 - above) * integral;
+      const vec3 k = budget(lobe, vec3(float(integral)), true, above);
+      for (int c = 0; c < 3; ++c) q.refl_rgb[size_t(c)][l].c *= k[c];
+    }
+    for (size_t l = 0; l < q.high[0].size(); ++l) {
+      const double above = asg_side_fraction(q.high[0][l], n_ply, kModelFractionSteps);
+      vec3 integral(0, 0, 0);
+      for (int c = 0; c < 3; ++c) {
+        const AsgLobe& lc = q.high[c][l];
+        integral[c] = float(asg_integral(lc.mu1, lc.mu2, lc.c));
+        fwd[size_t(c)] += (1 - above) * integral[c];
+      }
+      const vec3 k = budget(q.high[1][l], integral, false, above);
+      for (int c = 0; c < 3; ++c) q.high[c][l].c *= k[c];
+    }
+    for (int c = 0; c < 3; ++c) {
       double rb, rf, hb, hf;
       asg_residual_at(d.yarn[y].refl, theta_i, h, 0.0, rb, rf);
       asg_residual_at(d.yarn[y].high, theta_i, h, sigma[y][size_t(c)], hb, hf);
@@ -475,6 +517,16 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
       q.res_f[size_t(c)] = float(rf + hf);
       q.t_fwd[size_t(c)] = float(fwd[size_t(c)] + q.res_f[size_t(c)]);
     }
+    const vec3 T(q.t_fwd[0], q.t_fwd[1], q.t_fwd[2]);
+    const vec3 rest =
+        raywave_residual_diffuse_weight(vec3(q.res_b[0], q.res_b[1], q.res_b[2]), q.open,
+                                        q.vis_v) +
+        raywave_residual_translucent_weight(vec3(q.res_f[0], q.res_f[1], q.res_f[2]), q.open,
+                                            kf, q.s) +
+        raywave_layer_diffuse_weight(T, q.open, q.vis_v, kb) +
+        raywave_layer_translucent_weight(T, q.open, kf, q.s);
+    const vec3 r = raywave_energy_budget(rest, used, q.open);
+    q.rest_scale = {r.x, r.y, r.z};
     return q;
   }
   // Closures: the shaders' look-ups and shared functions.
@@ -490,6 +542,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     q.k_f[size_t(c)] = fac[1][c];
   }
   vec3 t_fwd(0, 0, 0);  // the lobes' part of T (raywave_lobe_forward), e_f added below
+  vec3 used(0, 0, 0);  // what the closures so far send out (raywave_energy_budget)
   int lobe_index = 0;  // over f_refl's lobes, then f_high's
   auto add_lobes = [&](const AsgTable& tab, const Image& nodes, const Image* tint) {
     const int M = int(tab.theta_i.size()), N = int(tab.h.size()), L = tab.lobes;
@@ -533,6 +586,8 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
                            vec3(q.k_f[0], q.k_f[1], q.k_f[2]), q.s, b_refl, b_refr, w[0], w[2],
                            w[1]);
       t_fwd = t_fwd + raywave_lobe_forward(integral, tint3, b_refl);
+      vec3 energy = raywave_lobe_energy(integral, tint3, q.open, q.vis_v, vis_z,
+                                        vec3(q.k_f[0], q.k_f[1], q.k_f[2]), q.s, b_refl);
       if (q.noise) {  // Eq. S.39 per lobe (speckle_noise.h)
         vec3 lx, ly, lz;
         asg_frame(a[0], a[1], a[2], lx, ly, lz);
@@ -546,7 +601,11 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
         const vec3 nz(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
                       n0[2] * (1 - t) + n1[2] * t);
         for (vec3& wk : w) wk = wk * nz;
+        energy = energy * nz;
       }
+      const vec3 budget = raywave_energy_budget(energy, used, q.open);
+      for (vec3& wk : w) wk = wk * budget;
+      used = used + energy * budget;
       const float share[3] = {b_refl, (1 - b_refl) * (1 - b_refr), (1 - b_refl) * b_refr};
       for (int kind = 0; kind < 3; ++kind) {
         if (!(share[kind] > 0)) continue;
@@ -595,12 +654,18 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     const vec3 kf(q.k_f[0], q.k_f[1], q.k_f[2]), kb(q.k_b[0], q.k_b[1], q.k_b[2]);
     t_fwd = t_fwd + vec3(ef[0], ef[1], ef[2]);
     for (int c = 0; c < 3; ++c) q.t_fwd[size_t(c)] = t_fwd[c];
+    // After the lobes, within what they left of the budget (raywave_energy_budget).
+    const vec3 eb3(eb[0], eb[1], eb[2]), ef3(ef[0], ef[1], ef[2]);
+    const vec3 wlt0 = raywave_layer_translucent_weight(t_fwd, q.open, kf, q.s);
+    const vec3 wld0 = raywave_layer_diffuse_weight(t_fwd, q.open, q.vis_v, kb);
+    const vec3 wd0 = raywave_residual_diffuse_weight(eb3, q.open, q.vis_v);
+    const vec3 wt0 = raywave_residual_translucent_weight(ef3, q.open, kf, q.s);
+    const vec3 r = raywave_energy_budget(wlt0 + wld0 + wd0 + wt0, used, q.open);
+    const vec3 wlt = wlt0 * r, wld = wld0 * r, wd = wd0 * r, wt = wt0 * r;
     RaywaveClosure layer_t, layer_d;
     layer_t.kind = 1;
     layer_d.kind = 3;
     layer_t.N = layer_d.N = vec3(0, 0, 1);
-    const vec3 wlt = raywave_layer_translucent_weight(t_fwd, q.open, kf, q.s);
-    const vec3 wld = raywave_layer_diffuse_weight(t_fwd, q.open, q.vis_v, kb);
     layer_t.weight = {wlt.x, wlt.y, wlt.z};
     layer_d.weight = {wld.x, wld.y, wld.z};
     for (int c = 0; c < 3; ++c) {
@@ -609,8 +674,6 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
     }
     q.list.push_back(layer_t);
     q.list.push_back(layer_d);
-    const vec3 wd = raywave_residual_diffuse_weight(vec3(eb[0], eb[1], eb[2]), q.open, q.vis_v);
-    const vec3 wt = raywave_residual_translucent_weight(vec3(ef[0], ef[1], ef[2]), q.open, kf, q.s);
     RaywaveClosure rd, rt;
     rd.kind = 3;
     rt.kind = 1;
@@ -721,16 +784,17 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
   const vec3 L = normalize(q.back ? vec3(wi.x, wi.y, -wi.z) : wi);
   if (e == Evaluator::Model) {
     const Vec3d lp{dot(L, q.xp), dot(L, q.yp), dot(L, q.t)};
-    const double fr = asg_mixture_eval(q.refl, lp);
     // Eq. S.39: f_refl N_r(w'_o) + f_high N_h(w_o), the tiles themselves (level 0).
     float nr[4], nh[4];
     model_noise(q, lp, nr, nh);
     for (int c = 0; c < 3; ++c) {
-      const double f = fr * nr[c] + asg_mixture_eval(q.high[c], lp) * nh[c];
-      double v;
-      const double lambert = std::fabs(L.z) / M_PI;  // the residual's lobes (asg_residual.h)
-      // double_layer_factors.h: backward R + k_b T, forward k_f T.
       const size_t cc = size_t(c);
+      const double f = asg_mixture_eval(q.refl_rgb[cc], lp) * nr[c] +
+                       asg_mixture_eval(q.high[c], lp) * nh[c];
+      double v;
+      // the residual's lobes (asg_residual.h), within the budget's factor (raywave_lobes.h)
+      const double lambert = std::fabs(L.z) / M_PI * q.rest_scale[cc];
+      // double_layer_factors.h: backward R + k_b T, forward k_f T.
       if (L.z > 0) {
         const float vis_l = q.back ? 1.0f : horizon_visibility(L, const_cast<float*>(q.hor));
         v = q.open * q.vis_v *
@@ -805,7 +869,7 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
     const vec3 L = normalize(qm.back ? vec3(wi.x, wi.y, -wi.z) : wi);
     const Vec3d lp{dot(L, qm.xp), dot(L, qm.yp), dot(L, qm.t)};
     const vec3 n(0, 0, 1);
-    const double lambert = std::fabs(L.z) / M_PI;
+    const double lambert = std::fabs(L.z) / M_PI * qm.rest_scale[1];
     // The lobes' closures come first (one to three a lobe), then the rest (lobe = -1): the
     // layers' translucent and diffuse parts, the residual's diffuse and translucent ones,
     // transparent().
@@ -847,7 +911,7 @@ MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int 
       // The model's part of kind k: each lobe's share of that kind.
       const size_t l = size_t(cl.lobe);
       const bool refl = l < qm.refl.size();
-      const AsgLobe& lobe = refl ? qm.refl[l] : qm.high[1][l - qm.refl.size()];
+      const AsgLobe& lobe = refl ? qm.refl_rgb[1][l] : qm.high[1][l - qm.refl.size()];
       const double f = cl.share * asg_mixture_eval({lobe}, lp) * (refl ? nr[1] : nh[1]);
       out.first += float(f * factor);
       out.second += c;

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <random>
+#include <limits>
 
 #include "loom/asg_residual.h"
 #include "loom/cycles_closures.h"
@@ -350,6 +351,50 @@ TEST(RaywaveShading, ResidualRenderTableFollowsItsSource) {
   EXPECT_NEAR(wt.z, 0.8 * 0.75 * 0.5 * 0.4, 1e-6);
   EXPECT_NEAR(ld.y, 0.8 * 0.5 * 0.2 * 0.6, 1e-6);
   EXPECT_NEAR(lt.z, 0.8 * 0.25 * 0.5 * 0.7, 1e-6);
+}
+
+TEST(RaywaveShading, EnergyBudgetKeepsTheYarnWithinItsOpenFraction) {
+  // raywave_energy_budget against its definition, channel by channel: within the budget 1; over
+  // it, (open - used) / x; used alone over the budget gives 0; x = 0 or NaN leaves 1. And
+  // closures taking it in turn never send out more than open, however bright each one is.
+  using sh::raywave_energy_budget;
+  const vec3 k = raywave_energy_budget(vec3(0.3f, 0.8f, 0.2f), vec3(0.4f, 0.5f, 1.2f), 1.0f);
+  EXPECT_EQ(k[0], 1.0f);
+  EXPECT_FLOAT_EQ(k[1], 0.5f / 0.8f);
+  EXPECT_EQ(k[2], 0.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const vec3 k0 = raywave_energy_budget(vec3(0.0f, nan, -1.0f), vec3(2, 2, 2), 1.0f);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(k0[c], 1.0f) << c;
+  EXPECT_FLOAT_EQ(raywave_energy_budget(vec3(0.5f), vec3(0.2f), 0.6f)[0], 0.4f / 0.5f);
+  std::mt19937 g(5);
+  std::uniform_real_distribution<float> u(0, 0.6f);
+  for (int trial = 0; trial < 1000; ++trial) {
+    const float open = u(g) / 0.6f;
+    vec3 used(0, 0, 0), asked(0, 0, 0);
+    for (int i = 0; i < 9; ++i) {  // up to 8 lobes, then the rest
+      const vec3 x(u(g), u(g), u(g));
+      const vec3 kk = raywave_energy_budget(x, used, open);
+      used = used + x * kk;
+      asked = asked + x;
+    }
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LE(used[c], std::max(open, 0.0f) + 1e-6f) << trial;
+      // nothing is cut while the sum stays within the budget
+      if (asked[c] <= open) EXPECT_NEAR(used[c], asked[c], 1e-6f) << trial;
+      else EXPECT_NEAR(used[c], open, 1e-5f) << trial;
+    }
+  }
+  // A lobe's energy: its integral times open and tint, on the viewer's side times both
+  // visibilities, beyond it times (1 - s) k_f; shares in between mix linearly.
+  const vec3 tint(0.5f, 1.0f, 0.25f), kf(0.8f, 0.6f, 0.4f);
+  const vec3 up = sh::raywave_lobe_energy(2.0f, tint, 0.9f, 0.7f, 0.5f, kf, 0.25f, 1.0f);
+  const vec3 down = sh::raywave_lobe_energy(2.0f, tint, 0.9f, 0.7f, 0.5f, kf, 0.25f, 0.0f);
+  const vec3 mid = sh::raywave_lobe_energy(2.0f, tint, 0.9f, 0.7f, 0.5f, kf, 0.25f, 0.3f);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_FLOAT_EQ(up[c], 2.0f * 0.9f * tint[c] * 0.7f * 0.5f) << c;
+    EXPECT_FLOAT_EQ(down[c], 2.0f * 0.9f * tint[c] * 0.75f * kf[c]) << c;
+    EXPECT_NEAR(mid[c], 0.3f * up[c] + 0.7f * down[c], 1e-6f) << c;
+  }
 }
 
 TEST(RaywaveShading, DegenerateInputsGiveFiniteClosures) {
