@@ -96,6 +96,25 @@ TEST(Atlas, ReusesAValidAtlasOfTheSameSpec) {
   EXPECT_TRUE(loom::validate_atlas(d).empty());
 }
 
+TEST(Atlas, AnAtlasWhoseBakeKeyIsNotAStringIsReplaced) {
+  // Found by fuzz_manifest (stop 19): an atlas already at the target whose bake_key was not a
+  // string made the bake itself throw nlohmann's type_error, where it must be taken for another
+  // spec's atlas and replaced. Both places read it: the check for reuse before the bake and
+  // the one at publishing, when the rename meets the existing directory.
+  for (const json& key : {json(12345), json(nullptr), json::object(), json::array({1, 2})}) {
+    auto d = copy_atlas("bake_key.atlas");
+    json m = json::parse(std::ifstream(d / "manifest.json"));
+    m["bake_key"] = key;
+    std::ofstream(d / "manifest.json") << m.dump(2);
+    loom::BakeResult r;
+    ASSERT_NO_THROW(r = loom::bake_atlas(draft("plain"), d, {})) << key.dump();
+    EXPECT_FALSE(r.reused) << key.dump();
+    json after = json::parse(std::ifstream(d / "manifest.json"));
+    EXPECT_TRUE(after["bake_key"].is_string()) << key.dump();
+    EXPECT_TRUE(loom::validate_atlas(d).empty()) << key.dump();
+  }
+}
+
 TEST(Atlas, RejectsCorruptedTruncatedAndForeignAtlases) {
   auto d = copy_atlas("corrupt.atlas");
   { std::ofstream(d / "ply_frame.tx", std::ios::binary | std::ios::trunc) << "x"; }

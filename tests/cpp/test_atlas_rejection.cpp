@@ -2,7 +2,9 @@
 // behind a matching hash, path fields that leave the atlas directory, symbolic links, and
 // ray-wave manifests whose fields have the wrong type (validate_atlas's contract, atlas.h).
 #include <fmt/format.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -300,6 +302,33 @@ TEST(AtlasRejection, SymbolicLinksAreRefusedInsideAndOutside) {
   const fs::path link = loom::test::scratch("linked_dir.atlas");
   fs::create_directory_symlink(plain, link);
   EXPECT_TRUE(loom::validate_atlas(link).empty()) << joined(loom::validate_atlas(link));
+}
+
+TEST(AtlasRejection, FilesLargerThanTheCapAreRefusedBeforeTheyAreRead) {
+  // A review finding (stop 26, never observed): a manifest naming a huge or sparse file made
+  // validate_atlas allocate its whole size (std::bad_alloc, an exception the readers must not
+  // throw). read_atlas_file refuses anything above kMaxAtlasFileBytes by its size, before any
+  // allocation: here a sparse file one byte over the cap (no disk used) in place of a map.
+  const fs::path d = copy_atlas_dir(draft_atlas("plain", "surface"), "too_large.atlas");
+  const fs::path big = d / "ply_frame.exr";
+  fs::remove(big);
+  {
+    const int fd = ::open(big.c_str(), O_CREAT | O_WRONLY, 0644);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(::ftruncate(fd, off_t(loom::kMaxAtlasFileBytes + 1)), 0);
+    ::close(fd);
+  }
+  try {
+    (void)loom::read_atlas_file(d, "ply_frame.exr");
+    ADD_FAILURE() << "a file over the cap was read";
+  } catch (const loom::AtlasFileError& e) {
+    EXPECT_EQ(int(e.kind), int(loom::AtlasFileError::Kind::Unreadable));
+    EXPECT_TRUE(has(e.what(), big.string())) << e.what();
+    EXPECT_TRUE(has(e.what(), "more than an atlas file may")) << e.what();
+  }
+  const std::string e = joined(loom::validate_atlas(d));
+  EXPECT_TRUE(has(e, "ply_frame.exr") && has(e, "more than an atlas file may")) << e;
+  EXPECT_THROW((void)loom::load_atlas(d), std::runtime_error);
 }
 
 TEST(AtlasRejection, AtlasFilesAreReadOnceWithoutFollowingLinks) {
