@@ -74,7 +74,7 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks both). texel_guard.h is transcribed in node_mode.py and fingerprinted there.
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "095b71708b0b5ffb",
+    "include/loom/raywave_lobes.h": "ca74348eaa1d3868",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
     "include/loom/asg.h": "837c6aaf61b2da26",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
@@ -386,13 +386,13 @@ def raywave_lobe_energy(integral, tint, open_, vis_v, vis_z, k_f, s, b_refl):
 
 
 def raywave_energy_budget(x, used, open_):
-    """raywave_lobes.h: raywave_energy_budget(x, used, open): per channel c, 1, or
-    max(open - used[c], 0) / x[c] where x[c] > 0 and used[c] + x[c] > open."""
+    """raywave_lobes.h: raywave_energy_budget(x, used, open): per channel c,
+    min(1, max(open - used[c], 0) / x[c]) where x[c] > 0, else 1. (Math MINIMUM is fminf: a
+    NaN or Inf quotient on the side select does not take gives 1, not NaN.)"""
     k = []
     for c in ("x", "y", "z"):
         xc, uc = getattr(x, c), getattr(used, c)
-        over = (xc > 0.0) * ((uc + xc) > open_)
-        k.append(select(over, max_(open_ - uc, 0.0) / xc, 1.0))
+        k.append(select(xc > 0.0, min_(1.0, max_(open_ - uc, 0.0) / xc), 1.0))
     return vec(*k)
 
 

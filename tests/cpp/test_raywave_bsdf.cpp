@@ -366,6 +366,11 @@ TEST(RaywaveShading, EnergyBudgetKeepsTheYarnWithinItsOpenFraction) {
   const vec3 k0 = raywave_energy_budget(vec3(0.0f, nan, -1.0f), vec3(2, 2, 2), 1.0f);
   for (int c = 0; c < 3; ++c) EXPECT_EQ(k0[c], 1.0f) << c;
   EXPECT_FLOAT_EQ(raywave_energy_budget(vec3(0.5f), vec3(0.2f), 0.6f)[0], 0.4f / 0.5f);
+  // A denormal x: within the budget 1 (the quotient overflows to Inf, the min takes 1), over it 0.
+  const vec3 tiny = raywave_energy_budget(vec3(1e-40f, 1e-40f, 0.0f), vec3(0.5f, 1.0f, 0.0f), 1.0f);
+  EXPECT_EQ(tiny[0], 1.0f);
+  EXPECT_EQ(tiny[1], 0.0f);
+  EXPECT_EQ(tiny[2], 1.0f);
   std::mt19937 g(5);
   std::uniform_real_distribution<float> u(0, 0.6f);
   for (int trial = 0; trial < 1000; ++trial) {

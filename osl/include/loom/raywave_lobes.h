@@ -373,7 +373,9 @@ LOOM_FN color raywave_lobe_energy(float integral, color tint, float open, float 
 /// The factor, per channel, that lets energy x (a lobe's with the speckle noise, or the yarn's
 /// other closures') follow energy `used` (what the closures before it send out) without the
 /// yarn sending out more than its open fraction: 1 where used + x <= open, else
-/// max(open - used, 0) / x (x <= 0 or NaN: 1). Loom's choice where S.39 is silent: its noise
+/// max(open - used, 0) / x; written min(1, max(open - used, 0) / x) for x > 0 and 1 otherwise
+/// (x <= 0 or NaN), so that node mode, whose select evaluates both sides, never meets an
+/// Inf or NaN on the side it does not take (a tiny x). Loom's choice where S.39 is silent: its noise
 /// has mean 1 over directions, not over one point's lobes, so on its own it lifted a point of a
 /// white yarn to 1.07-1.10 of the light it receives, and the fitted lobes interpolated between
 /// slices reached 1.003 with the noise off. The closures take the budget in order (f_refl's
@@ -385,8 +387,8 @@ LOOM_FN color raywave_lobe_energy(float integral, color tint, float open, float 
 LOOM_FN color raywave_energy_budget(color x, color used, float open) {
   color k = color(1.0);
   for (int c = 0; c < 3; c += 1) {
-    if (x[c] > 0.0 && used[c] + x[c] > open)
-      k[c] = max(open - used[c], 0.0) / x[c];
+    if (x[c] > 0.0)
+      k[c] = min(1.0, max(open - used[c], 0.0) / x[c]);
   }
   return k;
 }
