@@ -376,6 +376,19 @@ namespace {
 /// beyond the tables' largest level, where the lobes are already gone).
 double guard_sigma(double s) { return std::isnan(s) ? 0.0 : std::clamp(s, 0.0, 1e12); }
 
+/// The noise averaged over a lobe with ply-space centre lz and bandwidths mu1, mu2 (Eq. S.39 as
+/// the closures take it: speckle_noise.h, noise_lobe_uv, the two blur levels blended).
+vec3 lobe_noise(const RaywavePoint::Impl& q, vec3 lz, bool is_refl, float mu1, float mu2) {
+  float u, v0, v1, t, n0[4], n1[4];
+  noise_lobe_uv(lz, q.wi_ply, is_refl ? 1 : 0, mu1, mu2, q.noise_instance, q.noise_shift,
+                q.noise->instances, u, v0, v1, t);
+  const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
+  sample_periodic(img, u, v0, n0);
+  sample_periodic(img, u, v1, n1);
+  return vec3(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
+              n0[2] * (1 - t) + n1[2] * t);
+}
+
 RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 wo, Evaluator e,
                            bool gap_diffraction) {
   // Texels and absorption outside their ranges are brought back first (guard_surface_point).
@@ -475,16 +488,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
                                               raywave_from_ply(lz, q.xp, q.yp, q.t), q.hor);
       vec3 en = raywave_lobe_energy(1.0f, integral, q.open, q.vis_v, vis_z, kf, q.s,
                                     float(above));
-      if (q.noise) {
-        float u, v0, v1, t, n0[4], n1[4];
-        noise_lobe_uv(lz, q.wi_ply, is_refl ? 1 : 0, float(l.mu1), float(l.mu2),
-                      q.noise_instance, q.noise_shift, q.noise->instances, u, v0, v1, t);
-        const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
-        sample_periodic(img, u, v0, n0);
-        sample_periodic(img, u, v1, n1);
-        en = en * vec3(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
-                       n0[2] * (1 - t) + n1[2] * t);
-      }
+      if (q.noise) en = en * lobe_noise(q, lz, is_refl, float(l.mu1), float(l.mu2));
       const vec3 k = raywave_energy_budget(en, used, q.open);
       used = used + en * k;
       return k;
@@ -591,15 +595,7 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
       if (q.noise) {  // Eq. S.39 per lobe (speckle_noise.h)
         vec3 lx, ly, lz;
         asg_frame(a[0], a[1], a[2], lx, ly, lz);
-        const bool is_refl = tint == nullptr;
-        float u, v0, v1, t, n0[4], n1[4];
-        noise_lobe_uv(lz, q.wi_ply, is_refl ? 1 : 0, a[3], b[0], q.noise_instance, q.noise_shift,
-                      q.noise->instances, u, v0, v1, t);
-        const Image& img = is_refl ? *q.noise->refl : *q.noise->high;
-        sample_periodic(img, u, v0, n0);
-        sample_periodic(img, u, v1, n1);
-        const vec3 nz(n0[0] * (1 - t) + n1[0] * t, n0[1] * (1 - t) + n1[1] * t,
-                      n0[2] * (1 - t) + n1[2] * t);
+        const vec3 nz = lobe_noise(q, lz, tint == nullptr, a[3], b[0]);
         for (vec3& wk : w) wk = wk * nz;
         energy = energy * nz;
       }

@@ -428,6 +428,18 @@ const fs::path& baked_white(const std::string& tier, bool extreme) {
   return dirs.emplace(key, dir).first->second;
 }
 
+/// n texels of yarn (not gap) at uniformly random atlas coordinates, from a fixed seed.
+std::vector<loom::SurfacePoint> random_yarn_texels(const loom::Atlas& a, size_t n, unsigned seed) {
+  std::mt19937 g(seed);
+  std::uniform_real_distribution<float> u01(0, 1);
+  std::vector<loom::SurfacePoint> pts;
+  while (pts.size() < n) {
+    const auto p = loom::sample_surface(a, u01(g), u01(g));
+    if (std::lround(p.kind) != 0) pts.push_back(p);
+  }
+  return pts;
+}
+
 double sphere_albedo(const std::function<double(vec3)>& f_cos, int n) {
   double sum = 0;
   for (int i = 0; i < n; ++i) {
@@ -559,13 +571,7 @@ TEST(Extremes, RaywaveEnergyOfWhiteYarnsIsConservedAtGrazingViews) {
     keep.push_back(loom::layer_factors_image(one.layers[side], sig));
     one.factors[side] = &keep.back();
   }
-  std::mt19937 g(17);
-  std::uniform_real_distribution<float> u01(0, 1);
-  std::vector<loom::SurfacePoint> pts;
-  while (pts.size() < 24) {
-    const auto p = loom::sample_surface(a, u01(g), u01(g));
-    if (std::lround(p.kind) != 0) pts.push_back(p);
-  }
+  const std::vector<loom::SurfacePoint> pts = random_yarn_texels(a, 24, 17);
   double worst = 0, most_added = -1;
   for (double c : {0.95, 0.5})
     for (double side : {1.0, -1.0})
@@ -609,13 +615,7 @@ TEST(Extremes, RaywaveEnergyWithSpeckleNoiseIsConserved) {
   const auto a = loom::load_atlas(baked_white("raywave", false));
   const loom::RaywaveData d = loom::load_raywave(a);
   ASSERT_TRUE(d.noise.present);
-  std::mt19937 g(23);
-  std::uniform_real_distribution<float> u01(0, 1);
-  std::vector<loom::SurfacePoint> pts;
-  while (pts.size() < 24) {
-    const auto p = loom::sample_surface(a, u01(g), u01(g));
-    if (std::lround(p.kind) != 0) pts.push_back(p);
-  }
+  const std::vector<loom::SurfacePoint> pts = random_yarn_texels(a, 24, 23);
   double worst[2] = {0, 0};
   std::string where[2];
   const double az = 2.5;
