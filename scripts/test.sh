@@ -1,23 +1,40 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs every Loom test: the C++ unit tests (also under AddressSanitizer and
-# UndefinedBehaviorSanitizer), a bounded fuzzing run of the parsers (scripts/fuzz.sh, 45 s for
-# each of its four targets), the Blender tests (headless, in the Blender that scripts/blender.sh
-# finds or provisions) and the OSL compile check (skipped with a message when oslc is absent).
+# Sets up, builds and runs every Loom test:
+#   - the C++ unit tests (CTest label cpp), built once, with AddressSanitizer +
+#     UndefinedBehaviorSanitizer, in build-san/, and a bounded run of each libFuzzer target
+#     (label fuzz, $LOOM_FUZZ_SECONDS each, default 30) from build-fuzz/ (scripts/build_san.sh);
+#   - the Blender tests (label blender, headless, in the Blender that scripts/blender.sh finds or
+#     provisions) and the OSL compile check (label osl, skipped with a message when oslc is
+#     absent), from the release build in build/, which builds only what they run.
+#   bash scripts/test.sh [--full]
+# --full adds the long sweeps (LOOM_FULL=1: the C++ tests' full randomised sweeps, the
+# Blender parity at every sample count it escalates to) and fuzzes each target for 600 s.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+case ${1:-} in
+  --full) export LOOM_FULL=1 LOOM_FUZZ_SECONDS=${LOOM_FUZZ_SECONDS:-600} ;;
+  "") ;;
+  *) echo "test.sh: unknown argument \"$1\" (allowed: --full)" >&2; exit 2 ;;
+esac
+phase() { printf '== %s (%s) ==\n' "$1" "$(date +%T)"; }
+t0=$SECONDS
 
-echo "== build (release) =="
-LOOM_BUILD_DIR=$here/build bash "$here/scripts/build.sh"
-echo "== build (ASan + UBSan) =="
-LOOM_BUILD_DIR=$here/build-asan LOOM_BUILD_TYPE=Debug bash "$here/scripts/build.sh" -DLOOM_SANITIZE=ON
+phase "build (release: loom-bake and the tools the Blender tests run)"
+LOOM_BUILD_DIR=$here/build LOOM_TARGETS="loom-bake loom_tamper_atlas" \
+  bash "$here/scripts/build.sh" "-DLOOM_TEST_SETS=blender;osl"
+phase "build (ASan + UBSan: the C++ tests)"
+bash "$here/scripts/build_san.sh" cpp
+phase "build (clang, ASan + UBSan, libFuzzer: the fuzzers)"
+bash "$here/scripts/build_san.sh" fuzz
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-echo "== C++ tests under ASan + UBSan =="
-ctest --test-dir "$here/build-asan" -L cpp --output-on-failure -j 2
-
-echo "== fuzzing, bounded (libFuzzer, ASan + UBSan) =="
-bash "$here/scripts/fuzz.sh" "${LOOM_FUZZ_SECONDS:-45}"
-
-echo "== all tests (C++, Blender, OSL) =="
-ctest --test-dir "$here/build" --output-on-failure -j 2
+status=0
+phase "C++ tests under ASan + UBSan"
+ctest --test-dir "$here/build-san" -L cpp --output-on-failure -j 2 || status=1
+phase "bounded fuzzing (libFuzzer, ASan + UBSan)"
+ctest --test-dir "$here/build-fuzz" -L fuzz --output-on-failure -j 2 || status=1
+phase "Blender and OSL tests"
+ctest --test-dir "$here/build" -L 'blender|osl' --output-on-failure -j 2 || status=1
+phase "done in $((SECONDS - t0)) s"
+exit $status

@@ -249,8 +249,9 @@ TEST(AtlasRejection, PathFieldsLeavingTheAtlasAreRefusedNamingTheField) {
        "raywave.shading.microfacet_albedo"},
       {json::json_pointer("/raywave/noise/files/refl"), "raywave.noise.files.refl"},
       {json::json_pointer("/raywave/diffraction/files/edge"), "raywave.diffraction.files.edge"}};
-  for (const auto& [ptr, field] : refs)
+  for (const auto& [pointer, field] : refs)
     for (const char* bad : {"../../etc/passwd", "/etc/passwd", "ply_frame.exr"}) {
+      const json::json_pointer& ptr = pointer;  // a structured binding is not capturable in C++17
       const fs::path d = copy_atlas_dir(rw, "escape_raywave.atlas");
       edit_atlas_manifest(d, [&](json& m) {
         ASSERT_TRUE(m.contains(ptr)) << ptr.to_string();

@@ -37,11 +37,7 @@ const fs::path& baked(const std::string& tier) {
   if (it != dirs.end()) return it->second;
   auto d = loom::preset("twill");
   d["model"]["tier"] = tier;
-  auto r = loom::parse_spec(d, "draft");
-  EXPECT_TRUE(r.ok());
-  fs::path dir = scratch(tier + ".atlas");
-  loom::bake_atlas(r.spec, dir, {});
-  return dirs.emplace(tier, dir).first->second;
+  return dirs.emplace(tier, loom::test::shared_atlas("twill-" + tier + ".draft", d)).first->second;
 }
 
 /// Every scalar a texel gives the shaders, by address (vec3 components one by one).
@@ -421,11 +417,7 @@ const fs::path& baked_white(const std::string& tier, bool extreme) {
     d[y]["transmission"] = 1.0;
     d[y]["roughness"] = 0.1;
   }
-  auto r = loom::parse_spec(d, "draft");
-  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.errors[0]);
-  fs::path dir = scratch("grazing-" + key + ".atlas");
-  loom::bake_atlas(r.spec, dir, {});
-  return dirs.emplace(key, dir).first->second;
+  return dirs.emplace(key, loom::test::shared_atlas("twill-" + key + ".draft", d)).first->second;
 }
 
 /// n texels of yarn (not gap) at uniformly random atlas coordinates, from a fixed seed.

@@ -26,11 +26,8 @@ fs::path bake(const std::string& preset, const std::string& quality, const std::
   auto d = loom::preset(preset);
   d["model"]["tier"] = tier;
   if (!noise) d["wave"] = {{"noise", false}};
-  auto r = loom::parse_spec(d, quality);
-  EXPECT_TRUE(r.ok());
-  fs::path dir = loom::test::scratch(preset + "_" + tier + "_" + quality + (noise ? "" : "_quiet"));
-  loom::bake_atlas(r.spec, dir, {});
-  return dir;
+  return loom::test::shared_atlas(preset + "-" + tier + (noise ? "" : "-quiet") + "." + quality, d,
+                                  quality);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <fstream>
@@ -36,20 +37,45 @@ inline int run(const std::string& cmd, std::string* out = nullptr) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
-/// A draft atlas of a built-in preset at a tier ("surface" or "raywave"), baked once per process
-/// into scratch("<preset>-<tier>.draft"); read it, do not change it (copy_atlas_dir for that).
-inline const std::filesystem::path& draft_atlas(const std::string& preset, const std::string& tier) {
+/// The atlas of `spec` (a spec document, parsed at `quality`), baked once for all the test
+/// processes of a run: into $LOOM_TEST_ATLAS_CACHE/<name> (CTest sets it to the build's
+/// test-atlases/; every C++ test is a process of its own, and under the sanitizers a ray-wave
+/// bake costs up to a minute), else into scratch(<name>). bake_atlas reuses a valid atlas there
+/// only if the same spec was baked by this very test binary (its bake key holds the binary's
+/// hash), so a rebuilt binary bakes afresh; concurrent bakes of one spec leave one valid atlas
+/// (AtlasCli.ConcurrentBakesOfOneSpecLeaveOneValidAtlas). Read it, do not change it
+/// (copy_atlas_dir for that). `name` must differ for different specs.
+inline const std::filesystem::path& shared_atlas(const std::string& name,
+                                                 const nlohmann::json& spec,
+                                                 const std::string& quality = "draft") {
   static std::map<std::string, std::filesystem::path> baked;
-  const std::string key = preset + "-" + tier;
-  auto it = baked.find(key);
+  auto it = baked.find(name);
   if (it != baked.end()) return it->second;
+  const loom::SpecResult r = loom::parse_spec(spec, quality);
+  if (!r.ok()) throw std::runtime_error("shared_atlas " + name + ": " + r.errors.at(0));
+  std::filesystem::path dir;
+  if (const char* cache = std::getenv("LOOM_TEST_ATLAS_CACHE"); cache && *cache) {
+    std::filesystem::create_directories(cache);
+    dir = std::filesystem::path(cache) / name;
+  } else {
+    dir = scratch(name);
+  }
+  loom::bake_atlas(r.spec, dir, {});
+  return baked.emplace(name, dir).first->second;
+}
+
+/// A draft atlas of a built-in preset at a tier ("surface" or "raywave"): shared_atlas.
+inline const std::filesystem::path& draft_atlas(const std::string& preset, const std::string& tier) {
   nlohmann::json d = loom::preset(preset);
   d["model"]["tier"] = tier;
-  const loom::SpecResult r = loom::parse_spec(d, "draft");
-  if (!r.ok()) throw std::runtime_error("draft_atlas: " + r.errors.at(0));
-  const std::filesystem::path dir = scratch(key + ".draft");
-  loom::bake_atlas(r.spec, dir, {});
-  return baked.emplace(key, dir).first->second;
+  return shared_atlas(preset + "-" + tier + ".draft", d);
+}
+
+/// The size of a randomised sweep: `fast` in the test command, `full` with LOOM_FULL=1
+/// (scripts/test.sh --full).
+inline long sweep(long fast, long full) {
+  const char* f = std::getenv("LOOM_FULL");
+  return f && std::string(f) == "1" ? full : fast;
 }
 
 /// A copy of the atlas directory `src` at scratch(name).
