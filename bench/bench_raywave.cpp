@@ -10,6 +10,7 @@
 
 #include "loom/asg_fit.h"
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "loom/ply_scattering.h"
 #include "loom/raywave_bsdf.h"
 

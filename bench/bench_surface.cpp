@@ -7,6 +7,7 @@
 
 #include "loom/albedo_lut.h"
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "loom/evaluator.h"
 
 namespace {

@@ -8,7 +8,8 @@
 #     absent), from the release build in build/, which builds only what they run.
 #   bash scripts/test.sh [--full]
 # --full adds the long sweeps (LOOM_FULL=1: the C++ tests' full randomised sweeps, the
-# Blender parity renders at 64 samples instead of 16) and fuzzes each target for 600 s.
+# Blender parity renders at 64 samples instead of 16, the organza's first diffraction pair) and
+# fuzzes each target for 600 s.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 case ${1:-} in
@@ -18,6 +19,14 @@ case ${1:-} in
 esac
 phase() { printf '== %s (%s) ==\n' "$1" "$(date +%T)"; }
 t0=$SECONDS
+
+# The Blender the tests use, provisioned (on a machine without it: debootstrap, mostly download
+# and unpacking) while the builds compile; the Blender phase waits for it.
+phase "Blender for the tests, found or provisioned in the background"
+bash "$here/scripts/setup.sh"  # (debootstrap among the Debian packages)
+mkdir -p "$here/build"
+bash "$here/scripts/blender.sh" info >"$here/build/blender-provision.log" 2>&1 &
+provision=$!
 
 phase "build (release: loom-bake and the tools the Blender tests run)"
 LOOM_BUILD_DIR=$here/build LOOM_TARGETS="loom-bake loom_tamper_atlas" \
@@ -34,6 +43,8 @@ phase "C++ tests under ASan + UBSan"
 ctest --test-dir "$here/build-san" -L cpp --output-on-failure -j 2 || status=1
 phase "bounded fuzzing (libFuzzer, ASan + UBSan)"
 ctest --test-dir "$here/build-fuzz" -L fuzz --output-on-failure -j 2 || status=1
+wait "$provision" ||
+  echo "scripts/blender.sh info failed (build/blender-provision.log); blender.provision says why"
 phase "Blender and OSL tests"
 ctest --test-dir "$here/build" -L 'blender|osl' --output-on-failure -j 2 || status=1
 phase "done in $((SECONDS - t0)) s"

@@ -14,6 +14,7 @@
 #include "loom/absorption.h"
 #include "loom/aperture_diffraction.h"
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "loom/cli_values.h"
 #include "loom/evaluator.h"
 #include "loom/fiber_lookup.h"
@@ -175,14 +176,20 @@ int main(int argc, char** argv) {
   auto* eval = app.add_subcommand("eval", "probe an evaluator");
   eval->require_subcommand(1);
   auto* bsdf = eval->add_subcommand("bsdf", "BSDF value f (no cosine) at a surface point");
-  std::string atlas_dir, uv_s, wi_s, wo_s, evaluator = "model";
+  std::string atlas_dir, uv_s, evaluator = "model";
+  std::vector<std::string> wi_s, wo_s;
   bool average = false;
   bsdf->add_option("--atlas", atlas_dir, "atlas directory")->required();
   bsdf->add_option("--uv", uv_s, "U,V texture coordinate (one repeat = [0,1)^2, wrapped)");
   bsdf->add_flag("--average", average, "average f over the whole weave repeat instead of --uv");
-  bsdf->add_option("--wi", wi_s, "X,Y,Z towards the light (tangent frame, x warp, z normal)")
-      ->required();
-  bsdf->add_option("--wo", wo_s, "X,Y,Z towards the viewer (tangent frame)")->required();
+  bsdf->add_option("--wi", wi_s,
+                   "X,Y,Z towards the light (tangent frame, x warp, z normal); several --wi "
+                   "and as many --wo: one JSON line per (wi, wo) pair, the atlas read once")
+      ->required()
+      ->allow_extra_args(false);
+  bsdf->add_option("--wo", wo_s, "X,Y,Z towards the viewer (tangent frame)")
+      ->required()
+      ->allow_extra_args(false);
   bsdf->add_option("--evaluator", evaluator, "model | closures")
       ->check(CLI::IsMember({"model", "closures"}));
   std::string backend = "nodes";
@@ -948,44 +955,57 @@ int main(int argc, char** argv) {
         }
         uv = loom::parse_cli_uv("--uv", uv_s);
       }
-      const auto wi = loom::parse_cli_direction("--wi", wi_s);
-      const auto wo = loom::parse_cli_direction("--wo", wo_s);
-      loom::shading::vec3 vi{float(wi[0]), float(wi[1]), float(wi[2])};
-      loom::shading::vec3 vo{float(wo[0]), float(wo[1]), float(wo[2])};
-      vi = loom::shading::normalize(vi);
-      vo = loom::shading::normalize(vo);
+      if (wi_s.size() != wo_s.size()) {
+        std::cerr << fmt::format("error: --wi and --wo: {} and {} directions; give one --wo for "
+                                 "each --wi\n", wi_s.size(), wo_s.size());
+        return 2;
+      }
+      std::vector<std::pair<loom::shading::vec3, loom::shading::vec3>> pairs;
+      for (size_t k = 0; k < wi_s.size(); ++k) {
+        const auto wi = loom::parse_cli_direction("--wi", wi_s[k]);
+        const auto wo = loom::parse_cli_direction("--wo", wo_s[k]);
+        pairs.emplace_back(
+            loom::shading::normalize(loom::shading::vec3{float(wi[0]), float(wi[1]), float(wi[2])}),
+            loom::shading::normalize(loom::shading::vec3{float(wo[0]), float(wo[1]), float(wo[2])}));
+      }
       auto atlas = loom::load_atlas(atlas_dir);
       auto e = evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model;
       if (atlas.manifest.value("tier", "") == "raywave") {
         // The ray-wave BSDF (baker/include/loom/raywave_bsdf.h): f_cos is Cycles' eval (f times
         // the cosine), the quantity the ply scattering density gives directly.
         const loom::RaywaveData rd = loom::load_raywave(atlas);
-        const std::array<float, 3> fc =
-            average ? loom::raywave_eval_average(atlas, rd, vi, vo, e)
-                    : loom::raywave_eval(
-                          rd, loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi, vo, e);
-        const float c = std::max(std::fabs(vi.z), 1e-6f);
-        // One mixture for both backends (--backend is not used): the microfacet normals are
-        // lifted alike by SVM and OSL; SVM's Translucent BSDF would lift its normal where the
-        // shading normal differs from the geometric one, which the emulator's tangent frame (flat
-        // geometry) does not have.
-        std::cout << json{{"f", {fc[0] / c, fc[1] / c, fc[2] / c}},
-                          {"f_cos", fc},
-                          {"evaluator", evaluator},
-                          {"backend", "any (flat geometry)"},
-                          {"tier", "raywave"}}
-                         .dump()
-                  << std::endl;
+        for (const auto& [vi, vo] : pairs) {
+          const std::array<float, 3> fc =
+              average ? loom::raywave_eval_average(atlas, rd, vi, vo, e)
+                      : loom::raywave_eval(rd,
+                                           loom::sample_surface(atlas, float(uv[0]), float(uv[1])),
+                                           vi, vo, e);
+          const float c = std::max(std::fabs(vi.z), 1e-6f);
+          // One mixture for both backends (--backend is not used): the microfacet normals are
+          // lifted alike by SVM and OSL; SVM's Translucent BSDF would lift its normal where the
+          // shading normal differs from the geometric one, which the emulator's tangent frame
+          // (flat geometry) does not have.
+          std::cout << json{{"f", {fc[0] / c, fc[1] / c, fc[2] / c}},
+                            {"f_cos", fc},
+                            {"evaluator", evaluator},
+                            {"backend", "any (flat geometry)"},
+                            {"tier", "raywave"}}
+                           .dump()
+                    << std::endl;
+        }
         return 0;
       }
       auto be = backend == "osl" ? loom::Backend::Osl : loom::Backend::Nodes;
-      std::array<float, 3> f =
-          average ? loom::eval_bsdf_average(atlas, vi, vo, e, be)
-                  : loom::eval_bsdf(atlas, loom::sample_surface(atlas, float(uv[0]), float(uv[1])),
-                                    vi, vo, e, be);
-      json out = {{"f", f}, {"evaluator", evaluator}};
-      if (e == loom::Evaluator::Closures) out["backend"] = backend;
-      std::cout << out.dump() << std::endl;
+      for (const auto& [vi, vo] : pairs) {
+        std::array<float, 3> f =
+            average ? loom::eval_bsdf_average(atlas, vi, vo, e, be)
+                    : loom::eval_bsdf(atlas,
+                                      loom::sample_surface(atlas, float(uv[0]), float(uv[1])), vi,
+                                      vo, e, be);
+        json out = {{"f", f}, {"evaluator", evaluator}};
+        if (e == loom::Evaluator::Closures) out["backend"] = backend;
+        std::cout << out.dump() << std::endl;
+      }
       return 0;
     }
   } catch (const loom::CliValueError& ex) {

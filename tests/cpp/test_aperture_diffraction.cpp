@@ -297,7 +297,7 @@ TEST(DiffractionTables, IntegralOverDirectionsIsThePowerThroughTheGap) {
 
 TEST(ApertureDiffraction, ProbeAnswersAndRejectsBadInput) {
   std::string out;
-  const std::string exe = LOOM_BAKE_EXE;
+  const std::string exe = loom::test::bake_exe();
   ASSERT_EQ(loom::test::run(exe + " eval diffraction --aperture 0,10,-inf,5 --waist 8 "
                                   "--lambda 450 --wi 0.1,0,1 --wo 0.2,0.05,-1",
                             &out),

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "test_util.h"
 #include "loom/evaluator.h"
 
@@ -174,7 +175,7 @@ TEST(AtlasCli, InvalidSpecWritesNothingAndExitsNonZero) {
   std::ofstream(spec) << R"({"warp": {"ior": 7}, "weave": {"pattern": "tartan"}})";
   auto out = scratch("bad.atlas");
   std::string text;
-  int code = run(std::string(LOOM_BAKE_EXE) + " bake " + spec.string() + " -o " + out.string() +
+  int code = run(loom::test::bake_exe() + " bake " + spec.string() + " -o " + out.string() +
                      " 2>&1",
                  &text);
   EXPECT_EQ(code, 2);
@@ -187,18 +188,30 @@ TEST(AtlasCli, InvalidSpecWritesNothingAndExitsNonZero) {
 
 TEST(AtlasCli, InspectAndEval) {
   std::string text;
-  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + plain_atlas().string(), &text), 0);
+  EXPECT_EQ(run(loom::test::bake_exe() + " inspect " + plain_atlas().string(), &text), 0);
   EXPECT_NE(text.find("valid"), std::string::npos);
-  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval bsdf --atlas " + plain_atlas().string() +
+  EXPECT_EQ(run(loom::test::bake_exe() + " eval bsdf --atlas " + plain_atlas().string() +
                     " --uv 0.25,0.25 --wi 0,0.5,0.866 --wo 0.2,0,1 --evaluator closures",
                 &text),
             0);
   auto j = json::parse(text);
   ASSERT_EQ(j["f"].size(), 3u);
   EXPECT_GT(j["f"][0].get<double>(), 0.0);
+  // Several (wi, wo) pairs in one call: one line per pair, each what a call of its own prints;
+  // unequal counts of --wi and --wo are bad input.
+  const std::string eval = loom::test::bake_exe() + " eval bsdf --average --atlas " +
+                           plain_atlas().string() + " --evaluator closures";
+  std::string one, two, both;
+  ASSERT_EQ(run(eval + " --wi 0,0.5,0.866 --wo 0.2,0,1", &one), 0);
+  ASSERT_EQ(run(eval + " --wi -0.3,0.1,-0.9 --wo 0,0,1", &two), 0);
+  ASSERT_EQ(run(eval + " --wi 0,0.5,0.866 --wo 0.2,0,1 --wi -0.3,0.1,-0.9 --wo 0,0,1", &both), 0);
+  EXPECT_EQ(both, one + two);
+  EXPECT_NE(one, two);
+  EXPECT_EQ(run(eval + " --wi 0,0,1 --wi 0,0,1 --wo 0,0,1 2>&1", &text), 2);
+  EXPECT_NE(text.find("--wi and --wo"), std::string::npos) << text;
   auto bad = copy_atlas("inspect_bad.atlas");
   fs::remove(bad / "horizon_0.exr");
-  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + bad.string() + " 2>&1", &text), 3);
+  EXPECT_EQ(run(loom::test::bake_exe() + " inspect " + bad.string() + " 2>&1", &text), 3);
   EXPECT_NE(text.find("horizon_0.exr is missing"), std::string::npos) << text;
   // Summary fields that validation does not require (the evaluators do not read them) may be
   // missing or of another type: inspect still summarises, naming what is absent (it threw a
@@ -210,10 +223,10 @@ TEST(AtlasCli, InspectAndEval) {
     m.erase("repeat");
   });
   ASSERT_TRUE(loom::validate_atlas(bare).empty());
-  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect " + bare.string() + " 2>&1", &text), 0);
+  EXPECT_EQ(run(loom::test::bake_exe() + " inspect " + bare.string() + " 2>&1", &text), 0);
   EXPECT_NE(text.find("(no spec.name)"), std::string::npos) << text;
   EXPECT_NE(text.find("(no repeat.warp_yarns)"), std::string::npos) << text;
-  EXPECT_EQ(run(std::string(LOOM_BAKE_EXE) + " inspect --json " + bare.string(), &text), 0);
+  EXPECT_EQ(run(loom::test::bake_exe() + " inspect --json " + bare.string(), &text), 0);
   const json bare_summary = json::parse(text);
   EXPECT_TRUE(bare_summary["name"].is_null());
   EXPECT_TRUE(bare_summary["repeat"].is_null());
@@ -260,7 +273,7 @@ TEST(Evaluators, ClosureMixtureConservesEnergyAndTracksTheModel) {
 TEST(AtlasCli, ProgressJsonLinesEndWithTheResult) {
   auto d = scratch("progress.atlas");
   std::string text;
-  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " bake plain --quality draft --progress=json -o " +
+  ASSERT_EQ(run(loom::test::bake_exe() + " bake plain --quality draft --progress=json -o " +
                     d.string(),
                 &text),
             0);
@@ -285,7 +298,7 @@ TEST(AtlasCli, ProgressJsonLinesEndWithTheResult) {
 
 TEST(AtlasCli, ConcurrentBakesOfOneSpecLeaveOneValidAtlas) {
   auto d = scratch("concurrent.atlas");
-  std::string cmd = std::string(LOOM_BAKE_EXE) + " bake twill --quality draft --progress=none -o " +
+  std::string cmd = loom::test::bake_exe() + " bake twill --quality draft --progress=none -o " +
                     d.string() + " >/dev/null";
   auto codes = scratch("codes.txt");
   std::string one = "(" + cmd + "; echo $? >> " + codes.string() + ")";
@@ -321,6 +334,7 @@ TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
   // Bakes `quality` into d and kills it after its `lines`-th progress line (0: lets it finish).
   // Returns 1 if it was killed, 0 if it ended first (exit status in *exit_code).
   auto bake = [&](const std::string& quality, int lines, int* exit_code = nullptr) {
+    const std::string exe = loom::test::bake_exe();
     int fds[2];
     if (pipe(fds) != 0) return -1;
     const pid_t pid = fork();
@@ -329,7 +343,7 @@ TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
       dup2(fds[1], 1);
       const int null = open("/dev/null", O_WRONLY);
       dup2(null, 2);
-      execl(LOOM_BAKE_EXE, LOOM_BAKE_EXE, "bake", "plain", "--quality", quality.c_str(),
+      execl(exe.c_str(), exe.c_str(), "bake", "plain", "--quality", quality.c_str(),
             "--force", "--progress=json", "-o", d.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }

@@ -179,7 +179,7 @@ TEST(CliValues, UvRegionApertureColourAndLobe) {
 }
 
 TEST(CliValues, LoomBakeUsesThemAndExitsTwo) {
-  const std::string exe = LOOM_BAKE_EXE;
+  const std::string exe = loom::test::bake_exe();
   std::string out;
   // Directions whose squared length over- or underflows are directions (they used to give NaN
   // or "not all zero").

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "loom/diffraction_tables.h"
 #include "loom/raywave_bsdf.h"
 #include "loom/spec.h"

@@ -145,13 +145,13 @@ TEST(FiberRegion, WrittenWholeOrNotAtAll) {
   // The command: a bad region exits 2, names the field, writes nothing.
   fs::path bad = loom::test::scratch("fiber_region/bad");
   std::string out;
-  int rc = loom::test::run(std::string(LOOM_BAKE_EXE) + " fibers --spec plain --region 0,0,-1,5 --out " +
+  int rc = loom::test::run(loom::test::bake_exe() + " fibers --spec plain --region 0,0,-1,5 --out " +
                                bad.string() + " 2>&1",
                            &out);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--region"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(bad));
-  rc = loom::test::run(std::string(LOOM_BAKE_EXE) + " fibers --spec plain --region 0,0,600,600 --out " +
+  rc = loom::test::run(loom::test::bake_exe() + " fibers --spec plain --region 0,0,600,600 --out " +
                            bad.string() + " --max-vertices 1000 2>&1",
                        &out);
   EXPECT_EQ(rc, 2);

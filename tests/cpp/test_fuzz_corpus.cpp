@@ -18,11 +18,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path kCorpus = fs::path(LOOM_SOURCE_DIR) / "tests" / "fuzz" / "corpus";
+fs::path corpus_dir() { return loom::test::source_dir() / "tests" / "fuzz" / "corpus"; }
 
 std::vector<fs::path> seeds(const std::string& target) {
   std::vector<fs::path> out;
-  for (const auto& e : fs::directory_iterator(kCorpus / target))
+  for (const auto& e : fs::directory_iterator(corpus_dir() / target))
     if (e.is_regular_file()) out.push_back(e.path());
   std::sort(out.begin(), out.end());
   return out;

@@ -127,7 +127,7 @@ void atlas_holds_the_fitted_tables_exactly() {
   // eval noise --stats reads them back: unit means (64 x 128 texels of nearly independent
   // speckle at the draft resolution: +-0.05 is over 4 standard errors).
   std::string out;
-  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval noise --stats --atlas " + dir.string(), &out), 0)
+  ASSERT_EQ(run(loom::test::bake_exe() + " eval noise --stats --atlas " + dir.string(), &out), 0)
       << out;
   const json st = json::parse(out);
   for (const char* which : {"refl", "high"}) {
@@ -146,7 +146,7 @@ void atlas_holds_the_fitted_tables_exactly() {
     for (int c = 0; c < 3; ++c)
       EXPECT_NEAR(a["rgb_spectrum"][c].get<double>(), a["colour_linear"][c].get<double>(), 2e-3);
   }
-  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval colour --rgb 0.5,0.3,0.1 --yarn weft --atlas " +
+  ASSERT_EQ(run(loom::test::bake_exe() + " eval colour --rgb 0.5,0.3,0.1 --yarn weft --atlas " +
                     dir.string(),
                 &out),
             0)
@@ -154,7 +154,7 @@ void atlas_holds_the_fitted_tables_exactly() {
   const json col = json::parse(out);
   for (int c = 0; c < 3; ++c)
     EXPECT_NEAR(col["rgb_reconstructed"][c].get<double>(), col["rgb"][c].get<double>(), 0.01);
-  EXPECT_NE(run(std::string(LOOM_BAKE_EXE) + " eval colour --rgb 1.5,0,0 --atlas " + dir.string() +
+  EXPECT_NE(run(loom::test::bake_exe() + " eval colour --rgb 1.5,0,0 --atlas " + dir.string() +
                     " 2>&1",
                 &out),
             0);
@@ -169,7 +169,7 @@ void raywave_probe_answers_from_tables_and_simulation() {
   // A grid point (theta_i node 0 is -80 deg, h node 3 of 7 is 0) and a forward direction.
   // (The angle as printed, so that both sides evaluate the very same theta_i.)
   const double th = std::stod(std::to_string(t.high.theta_i[2] * 180 / M_PI));
-  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval raywave --atlas " + dir.string() +
+  ASSERT_EQ(run(loom::test::bake_exe() + " eval raywave --atlas " + dir.string() +
                     " --theta-i " + std::to_string(th) + " --h 0 --sigma 20 --wo 0,-1,-0.2 --raw",
                 &out),
             0)
@@ -185,7 +185,7 @@ void raywave_probe_answers_from_tables_and_simulation() {
   fs::path surf = scratch("surface.atlas");
   auto r = loom::parse_spec(loom::preset("plain"), "draft");
   loom::bake_atlas(r.spec, surf, {});
-  EXPECT_NE(run(std::string(LOOM_BAKE_EXE) + " eval raywave --atlas " + surf.string() +
+  EXPECT_NE(run(loom::test::bake_exe() + " eval raywave --atlas " + surf.string() +
                     " --theta-i 0 --h 0 --wo 0,1,0 2>&1",
                 &out),
             0);

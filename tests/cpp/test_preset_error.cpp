@@ -174,7 +174,7 @@ TEST(PresetError, LobeProbeIsTheFitOnItsGridAndTheSimulationIntegratesToItsEnerg
   const double th_deg = t.high.theta_i[2] * 180 / M_PI, h = t.high.h[4];
   std::string out;
   const int res = 48;
-  const std::string exe = LOOM_BAKE_EXE, args = " --theta-i " + std::to_string(th_deg) +
+  const std::string exe = loom::test::bake_exe(), args = " --theta-i " + std::to_string(th_deg) +
                                                  " --h " + std::to_string(h);
   ASSERT_EQ(loom::test::run(exe + " eval lobes --atlas " + dir.string() + args +
                                 " --raw --snap --res " + std::to_string(res),

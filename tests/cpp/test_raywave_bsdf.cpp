@@ -640,7 +640,7 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
   EXPECT_LT(worst, 1.0);
   // The probe answers for ray-wave atlases.
   std::string out;
-  ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval bsdf --atlas " + dir.string() +
+  ASSERT_EQ(run(loom::test::bake_exe() + " eval bsdf --atlas " + dir.string() +
                     " --uv 0.3,0.6 --wi 0.2,0.1,0.9 --wo -0.3,0.2,0.8 --evaluator closures",
                 &out),
             0);
@@ -656,7 +656,7 @@ void raywave_bsdf_atlas_checks(const std::filesystem::path& dir) {
   double total[2] = {0, 0};
   int i = 0;
   for (const char* which : {"model", "closures"}) {
-    ASSERT_EQ(run(std::string(LOOM_BAKE_EXE) + " eval albedo --atlas " + dir.string() +
+    ASSERT_EQ(run(loom::test::bake_exe() + " eval albedo --atlas " + dir.string() +
                       " --wo 0.2,0.1,0.97 --texels 16 --evaluator " + which,
                   &out),
               0)

@@ -10,11 +10,38 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
 
 #include "loom/atlas.h"
+#include "loom/bake.h"
 
 namespace loom::test {
+
+/// The build directory this test binary belongs to (the binary is tests/loom_tests in it). The
+/// paths below are found at run time rather than compiled in, so that no object depends on
+/// where the clone is and ccache reuses them from one clone to the next (scripts/build.sh).
+inline std::filesystem::path build_dir() {
+  return std::filesystem::canonical("/proc/self/exe").parent_path().parent_path();
+}
+
+/// The loom-bake of this build: $LOOM_BAKE_EXE, else build_dir()/loom-bake.
+inline std::string bake_exe() {
+  if (const char* e = std::getenv("LOOM_BAKE_EXE"); e && *e) return e;
+  return (build_dir() / "loom-bake").string();
+}
+
+/// The source tree: $LOOM_SOURCE_DIR, else the one this build was configured from
+/// (CMAKE_HOME_DIRECTORY in build_dir()/CMakeCache.txt).
+inline std::filesystem::path source_dir() {
+  if (const char* e = std::getenv("LOOM_SOURCE_DIR"); e && *e) return e;
+  std::ifstream cache(build_dir() / "CMakeCache.txt");
+  const std::string key = "CMAKE_HOME_DIRECTORY:INTERNAL=";
+  for (std::string line; std::getline(cache, line);)
+    if (line.rfind(key, 0) == 0) return line.substr(key.size());
+  throw std::runtime_error("no CMAKE_HOME_DIRECTORY in " + (build_dir() / "CMakeCache.txt").string() +
+                           "; set LOOM_SOURCE_DIR");
+}
 
 /// A fresh (removed) path under this process's scratch directory.
 inline std::filesystem::path scratch(const std::string& name) {

@@ -31,6 +31,7 @@
 #include <string>
 
 #include "loom/atlas.h"
+#include "loom/bake.h"
 #include "loom/raywave_bsdf.h"
 #include "loom/spec.h"
 

@@ -18,11 +18,10 @@
 // double-layer factors (double_layer_factors.h: Eq. S.20-S.22 made energy-conserving) at
 // xi = wo for the channel's absorption.
 //
-// Not yet modelled at render time (the atlas holds the tables; the next slices of the shading
-// issue use them): aperture diffraction through gaps and past ply edges (the gap is a delta
-// here), speckle noise, the rays that cross a ply between its fibers (`unscattered`, a forward
-// delta), and a mask of where the beam meets both yarn layers (the factors apply on every yarn
-// point).
+// Also at render time: the gaps' aperture diffraction (diffraction_sampling.h) and the speckle
+// noise per lobe (speckle_noise.h). Not yet: ply-edge diffraction (the atlas holds its table),
+// the rays that cross a ply between its fibers (`unscattered`, a forward delta), and a mask of
+// where the beam meets both yarn layers (the factors apply on every yarn point).
 #pragma once
 #include <array>
 #include <memory>
@@ -33,41 +32,9 @@
 #include "loom/double_layer.h"
 #include "loom/evaluator.h"
 #include "loom/ply_tables.h"
+#include "loom/render_tables.h"
 
 namespace loom {
-
-/// The layer_factors tables' contents (manifest raywave.shading.factors_layout): the per-point
-/// factors k_b, k_f of double_layer_factors.h. Atlases with other factors (the ratios
-/// B_total / B_t, F_total / F_t, F_total of older bakers) are refused with a re-bake message.
-inline constexpr const char* kLayerFactorsLayout = "k_b,k_f";
-
-/// Render tables baked at the yarn colours (layouts in the shared headers).
-/// ply_tint_<yarn>: RGB Eq. S.11 scale of each lobe of f_high at sigma_rgb, per corner node in the
-/// nodes' lobe-major layout (column l (N' + 1) + j, row i: asg_tint_uv), so that a bilinear
-/// look-up between nodes interpolates it as S.7 does the lobes.
-Image ply_tint_image(const AsgTable& high, const std::array<double, 3>& sigma_rgb);
-/// ply_residual_<yarn>: RGB energy residual of f_refl + f_high (asg_residual.h) per slice and
-/// side at sigma_rgb (layout: raywave_residual_uv in raywave_lobes.h).
-Image ply_residual_rgb_image(const AsgTable& high, const AsgTable& refl,
-                             const std::array<double, 3>& sigma_rgb);
-
-/// A double-layer factor table of the atlas (double_layer_front/back) with its grids.
-struct DoubleLayerGrid {
-  Image table;  ///< B_t, F_t, B_total, F_total; column phi bin, row k theta_count + theta bin
-  int theta_count = 0, phi_count = 0;
-  std::vector<double> sigmas;
-  AbsorptionCurve absorption;  ///< interpolation variable between levels (absorption_curve.h)
-};
-/// Eq. S.20's factors at direction xi (unit, xi.z >= 0) and absorption sigma (1/mm): bilinear in
-/// the (theta, phi) bin centres (phi periodic, theta clamped), between levels by sigma_interval.
-DoubleLayerFactors double_layer_at(const DoubleLayerGrid& g, const shading::vec3& xi,
-                                   double sigma);
-/// layer_factors_<side>: the two RGB blocks (k_b, k_f) of double_layer_factors.h at sigma_rgb.
-Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb);
-
-/// The microfacet albedo LUT (raywave_lobes.h): E(cos(N, V), alpha) of Cycles' isotropic Beckmann
-/// reflection closure (F = 1), by quadrature in the half-vector domain with `n` x 4n points.
-Image microfacet_albedo_image(int n = 48);
 
 /// Gap diffraction of a ray-wave atlas (osl/include/loom/diffraction_sampling.h): the gap table,
 /// its cells (the distribution the shaders sample) and the sampling image.

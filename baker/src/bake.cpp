@@ -1,0 +1,182 @@
+// bake_atlas: the bake as its stages in order (bake_stages.h), the reuse of an atlas that holds
+// the same bake, and the manifest; the AtlasWriter writes and publishes (atlas_writer.h).
+#include "loom/bake.h"
+
+#include <chrono>
+#include <fmt/format.h>
+#include <fstream>
+#include <optional>
+
+#include "bake_stages.h"
+#include "loom/albedo_lut.h"
+#include "loom/atlas_writer.h"
+#include "loom/colour.h"
+#include "loom/ply_maps.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace loom {
+
+namespace {
+
+/// A valid ray-wave atlas among the candidates whose simulation key is `key`: the given
+/// directories, the destination, then the destination's siblings (the add-on's cache keeps
+/// every atlas in one directory). Returns its directory and manifest.
+std::optional<std::pair<fs::path, json>> find_simulation(const std::string& key, const fs::path& dir,
+                                                         const std::vector<fs::path>& extra) {
+  std::vector<fs::path> cands(extra.begin(), extra.end());
+  cands.push_back(dir);
+  std::error_code ec;
+  int scanned = 0;
+  for (fs::directory_iterator it(dir.parent_path(), ec), end; !ec && it != end; it.increment(ec)) {
+    if (++scanned > 512) break;  // a crowded directory is not worth a long search
+    const auto name = it->path().filename().string();
+    if (!name.empty() && name[0] != '.' && it->path() != dir) cands.push_back(it->path());
+  }
+  for (const fs::path& c : cands) {
+    std::ifstream in(c / "manifest.json");
+    if (!in) continue;
+    json m = json::parse(in, nullptr, false);
+    if (m.is_discarded() || !m.is_object() || !m.contains("raywave") ||
+        string_field(m["raywave"], "simulation_key") != key)
+      continue;
+    if (!validate_atlas(c, &m).empty()) continue;
+    return std::pair{fs::absolute(c), m};
+  }
+  return std::nullopt;
+}
+
+/// What decides whether an existing atlas can be reused: the spec, the colour conversion and
+/// the very baker binary that made it (a rebuilt baker may bake the same spec differently, and a
+/// version number that someone must remember to bump would let stale atlases through).
+const std::string& baker_id() {
+  static const std::string id = [] {
+    std::error_code ec;
+    auto exe = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? std::string(kBakerVersion) : sha256_file(exe);
+  }();
+  return id;
+}
+
+json manifest_of(const BakeContext& ctx, const std::string& bake_key, const json& repeat,
+                 json textures, json raywave) {
+  const FabricSpec& spec = ctx.spec;
+  json manifest = {
+      {"schema", kAtlasSchema},
+      {"baker_version", kBakerVersion},
+      {"spec_sha256", sha256_string(ctx.canonical_spec.dump())},
+      {"bake_key", bake_key},
+      {"spec", ctx.canonical_spec},
+      {"tier", to_string(spec.tier)},
+      {"quality", to_string(spec.quality)},
+      {"repeat", repeat},
+      {"texels_per_cell", texels_per_cell(spec.quality)},
+      {"colour", ctx.cc.describe()},
+      {"yarn_colours_linear", {{"warp", spec.warp.color_linear}, {"weft", spec.weft.color_linear}}},
+      {"conventions",
+       {{"frame", "tangent frame: x along the warp (u), y along the weft (v), z the normal"},
+        {"rows", "row 0 of every file is the top (v = 1); Blender's v = 0 is the bottom"},
+        {"uv", "one weave repeat spans uv [0,1)^2; shaders wrap uv themselves"}}},
+      {"textures", std::move(textures)}};
+  if (!raywave.is_null()) manifest["raywave"] = std::move(raywave);
+  return manifest;
+}
+
+}  // namespace
+
+std::string raywave_simulation_key(json canon, const std::string& colour,
+                                   const std::string& baker_id) {
+  canon.erase("name");
+  for (const char* y : {"warp", "weft"})
+    if (canon.contains(y) && canon[y].is_object()) canon[y].erase("color");
+  return sha256_string(canon.dump() + colour + baker_id);
+}
+
+json bake_surface_stage(const BakeContext& ctx) {
+  const bool reuse = ctx.source.has_value();
+  SurfaceMaps maps = bake_surface_maps(ctx.spec, ctx.progress_fn, /*horizons=*/!reuse);
+  for (size_t k = 0; k < maps.images.size(); ++k) {
+    const MapInfo& mi = maps.info[k];
+    if (reuse && mi.name.rfind("albedo_", 0) != 0) {  // only the albedo maps hold colour
+      ctx.out.copy(ctx.source->first, ctx.source->second, mi.name);
+      continue;
+    }
+    ctx.out.write(maps.images[k], mi.name, true, "periodic",
+                  {{"channels", mi.channels},
+                   {"range", mi.range},
+                   {"units", mi.units},
+                   {"tiling", "periodic"},
+                   {"period_uv", {1.0, 1.0}},
+                   {"description", mi.description}});
+    ctx.progress("write", double(k + 1) / (maps.images.size() + 1));
+  }
+  if (reuse) {
+    ctx.out.copy(ctx.source->first, ctx.source->second, "albedo_lut");  // per unit colour
+  } else {
+    const Image lut = bake_albedo_lut(ctx.spec, ctx.progress_fn);
+    ctx.out.write(
+        lut, "albedo_lut", false, "clamp",
+        {{"channels", {"A_rs", "A_ggx", "A_ts", "one"}},
+         {"range", {{0, 2}, {0, 2}, {0, 2}, {1, 1}}},
+         {"units", {"", "", "", ""}},
+         {"tiling", "clamp"},
+         {"description",
+          fmt::format("directional albedos per unit k for the closure weights (closure_mapping.h):"
+                      " rows kind-major (warp, then weft, from the bottom), then {0} slices of the "
+                      "ply tangent elevation t_z in [0, {1}], then {2} rows of cos theta_view (row "
+                      "j at max(j/{3}, {4})); columns: view azimuth about t over [0, pi]",
+                      LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_ALBEDO_LUT_SIZE,
+                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}});
+  }
+  return {{"warp_yarns", maps.warp_yarns},
+          {"weft_yarns", maps.weft_yarns},
+          {"size_um", {maps.repeat_um[0], maps.repeat_um[1]}}};
+}
+
+BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions& opt) {
+  auto t0 = std::chrono::steady_clock::now();
+  fs::path dir = fs::absolute(dir_in).lexically_normal();
+  if (dir.filename().empty()) dir = dir.parent_path();
+  ColourConverter cc(opt.ocio_config);
+  for (YarnSpec* y : {&spec.warp, &spec.weft})
+    y->color_linear = y->color_space == "srgb" ? cc.srgb_to_linear(y->color_input) : y->color_input;
+  const json canon = canonical_spec(spec);
+  const std::string bake_key = sha256_string(canon.dump() + cc.describe().dump() + baker_id());
+
+  BakeResult res;
+  res.dir = dir;
+  if (fs::exists(fs::symlink_status(dir))) {
+    json m;
+    if (!opt.force && validate_atlas(dir, &m).empty() && string_field(m, "bake_key") == bake_key) {
+      res.reused = true;
+      res.bytes = atlas_dir_bytes(dir);
+      return res;
+    }
+    check_bake_destination(dir);
+  }
+  {
+    AtlasWriter out(dir);
+    // A colour-only change of a ray-wave spec: an atlas with the same simulation key (the
+    // destination's previous bake, a sibling in the cache, or --reuse) holds every table that
+    // does not depend on the colours; they are copied instead of computed.
+    const std::string sim_key = raywave_simulation_key(canon, cc.describe().dump(), baker_id());
+    BakeContext ctx{spec, canon, cc, opt.progress, out, std::nullopt};
+    if (spec.tier == Tier::Raywave && !opt.force)
+      ctx.source = find_simulation(sim_key, dir, opt.reuse_from);
+    const json repeat = bake_surface_stage(ctx);
+    json raywave;
+    if (spec.tier == Tier::Raywave) {
+      raywave = bake_raywave_stages(ctx, sim_key);
+      if (ctx.source) res.reused_simulation = ctx.source->first;
+    }
+    res.reused = out.publish(manifest_of(ctx, bake_key, repeat, out.hashed_textures(),
+                                         std::move(raywave)),
+                             bake_key, opt.force);
+  }
+  res.bytes = atlas_dir_bytes(dir);
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace loom
