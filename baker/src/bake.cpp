@@ -96,6 +96,8 @@ std::string raywave_simulation_key(json canon, const std::string& colour,
 json bake_surface_stage(const BakeContext& ctx) {
   const bool reuse = ctx.source.has_value();
   SurfaceMaps maps = bake_surface_maps(ctx.spec, ctx.progress_fn, /*horizons=*/!reuse);
+  // (Before the maps are written: the "write" progress is the stage's last.)
+  const Image lut = reuse ? Image() : bake_albedo_lut(ctx.spec, ctx.progress_fn);
   for (size_t k = 0; k < maps.images.size(); ++k) {
     const MapInfo& mi = maps.info[k];
     if (reuse && mi.name.rfind("albedo_", 0) != 0) {  // only the albedo maps hold colour
@@ -114,7 +116,6 @@ json bake_surface_stage(const BakeContext& ctx) {
   if (reuse) {
     ctx.out.copy(ctx.source->first, ctx.source->second, "albedo_lut");  // per unit colour
   } else {
-    const Image lut = bake_albedo_lut(ctx.spec, ctx.progress_fn);
     ctx.out.write(
         lut, "albedo_lut", false, "clamp",
         {{"channels", {"A_rs", "A_ggx", "A_ts", "one"}},
