@@ -77,7 +77,6 @@ DIFFRACTION_FULL_ONLY = {len(PAIRS)}
 # guard; node mode without it rendered up to 6e8 on the tampered plain atlas).
 SUN = 3.0
 REPEATS_PER_METER = 173.3  # irrational-ish: no aliasing with the pixel grid
-CONTROL = None  # the white Lambertian material of the units check (made in main)
 
 
 def extra_args(p):
@@ -152,11 +151,11 @@ def point_at(scene, wi, wo):
     lt.look_along(bpy.data.objects["Sun"], tuple(-c for c in wi))
 
 
-def render_control(scene, plane, path):
-    """The same view and light on a white Lambertian swatch (the units check); the swatch's
-    material is put back afterwards."""
+def render_control(scene, plane, control, path):
+    """The same view and light on the white Lambertian `control` material (the units check);
+    the swatch's material is put back afterwards."""
     mat = plane.data.materials[0]
-    plane.data.materials[0] = CONTROL
+    plane.data.materials[0] = control
     try:
         return lt.render_to_exr(scene, path)
     finally:
@@ -180,13 +179,12 @@ def main():
         pairs = [p for p in pairs if p[0] in keep]
 
     # One scene and one material for every pair (building a ray-wave group takes seconds).
-    global CONTROL
     t0 = time.monotonic()
     scene, plane = setup(args)
     loom.api.assign(plane, atlas, mode="nodes", scale=REPEATS_PER_METER,
                     interpolation=args.interpolation)
     assert loom.api.last_assign()["mode"] == "NODES"
-    CONTROL = lt.diffuse_material()
+    control = lt.diffuse_material()
     print(f"loom-parity: scene and material built in {time.monotonic() - t0:.1f} s", flush=True)
 
     pairs = [(idx, lt.unit(wi), lt.unit(wo)) for idx, (wi, wo) in pairs]
@@ -239,7 +237,8 @@ def main():
             samples *= 4
 
         # Units: the same view and light on a white Lambertian swatch.
-        ctrl = render_control(scene, plane, os.path.join(args.out, f"control_{idx}.exr"))
+        ctrl = render_control(scene, plane, control,
+                              os.path.join(args.out, f"control_{idx}.exr"))
         ctrl_got = ctrl.rgb_mean()
         # One-sided Lambertian about the normal Cycles turns towards the viewer.
         ctrl_expect = SUN * cos_i / math.pi if wi[2] * wo[2] > 0 else 0.0

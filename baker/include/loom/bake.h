@@ -11,8 +11,6 @@
 
 namespace loom {
 
-struct ColourConversion;
-
 struct BakeOptions {
   std::string ocio_config;  ///< path of an OCIO config (Blender's); empty: Loom's built-in one
   ProgressFn progress;
