@@ -287,7 +287,7 @@ class BakeStatus:
             return 1.0
         if self.state != "baking":
             return 0.0
-        order = ("ply maps", "horizon", "albedo lut", "write")
+        order = ("ply maps", "horizon", "closure lut", "write")
         try:
             i = order.index(self.stage)
         except ValueError:

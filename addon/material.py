@@ -177,7 +177,7 @@ def build_material(mat, atlas_dir: str, mode: str = "AUTO", scale: float = 1.0, 
     # Cycles' "Bump Map Correction" changes closures whose normal differs from the shading
     # normal (n_p, N_c): glossy (and SVM translucent) normals are lifted towards the true normal
     # when their mirror direction would point below it, and diffuse lobes get the smoothed
-    # shadow-terminator term. loom-bake's albedo LUT (A_ggx) and its closure emulator assume
+    # shadow-terminator term. loom-bake's closure LUT (fitted GGX) and its closure emulator assume
     # Blender's default, on; set it explicitly so that a user's change cannot break the weights.
     # (Known divergence: with it on, the SVM Translucent BSDF node lifts its normal but OSL's
     # translucent() does not, so node mode's translucent(n_p) differs from OSL mode's.)

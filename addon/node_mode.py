@@ -11,23 +11,26 @@ What node mode adds to the header math is only Blender's side of the plumbing:
 * Atlas maps are the ``.exr`` twins of the ``.tx`` files (same texels), read by Image Texture
   nodes as Non-Color data with alpha ``CHANNEL_PACKED`` (any other alpha mode premultiplies or
   drops the A channel, which holds data), linear interpolation, REPEAT for the periodic maps and
-  EXTEND for the albedo LUT. Row 0 of the files is the top, which is also how Blender maps v, so
+  EXTEND for the closure LUT. Row 0 of the files is the top, which is also how Blender maps v, so
   UV in [0,1) reads a repeat as is.
 * The tangent frame: T from a Tangent node (UV map), orthogonalised against the normal; N the
   shading normal (Geometry > Normal, which Cycles turns towards the viewer on back faces); B built
   from the *front* normal Nf = N * (back ? -1 : 1), so that seeing the cloth from below mirrors z
   only, as the model does (surface_bsdf.h); atlas vectors are used as stored, so a back face
   shows the mirror image of the front, exactly like the OSL shader.
-* The glossy closure ``microfacet("ggx", N_c, t, a, 1, ...)`` becomes a Glossy BSDF node (GGX).
+* The glossy closure ``microfacet("ggx", N_c, t, ax, ay, ...)`` becomes a Glossy BSDF node (GGX).
   That node has no alpha inputs: Cycles (kernel/svm/closure.h, CLOSURE_BSDF_MICROFACET_GGX_ID,
   4.2 to 5.x) sets alpha = saturate(Roughness)^2 and, for 0 < Anisotropy <= 0.99,
-  alpha_x = alpha (1 - Anisotropy) along Tangent and alpha_y = alpha / (1 - Anisotropy).
-  alpha_x = a, alpha_y = 1 therefore needs alpha = sqrt(a), 1 - Anisotropy = sqrt(a):
-  Roughness = a^(1/4), Anisotropy = 1 - sqrt(a) (a >= LOOM_SGGX_MIN_ROUGHNESS = 1e-3 keeps
-  Anisotropy <= 0.969, inside Cycles' clamp).
+  alpha_x = alpha (1 - Anisotropy) along Tangent and alpha_y = alpha / (1 - Anisotropy); for
+  -0.99 <= Anisotropy < 0, alpha_x = alpha / (1 + Anisotropy), alpha_y = alpha (1 + Anisotropy).
+  So Roughness = (ax ay)^(1/4) and Anisotropy = 1 - sqrt(ax / ay) (or sqrt(ay / ax) - 1 when
+  ax > ay); the fitted alphas lie in [1e-3, 1], so |Anisotropy| <= 0.969, inside Cycles' clamp.
+* ``hair_transmission(N, r1, r2, T, 0)`` is a Hair BSDF node (component Transmission) with
+  RoughnessU = r1, RoughnessV = r2, Offset 0 (SVM negates it) and the Tangent linked (unlinked,
+  Cycles would take dPdv); its normal is the shading normal, as OSL's N.
 * Closure weights go into each BSDF node's Color input (Cycles multiplies the closure by it, and
-  does not clamp it: the glossy weight A_rs / A_ggx may exceed 1); the closures are summed with
-  Add Shader nodes, like the OSL ``+``.
+  does not clamp it: the fitted weights may exceed 1); the closures are summed with Add Shader
+  nodes, like the OSL ``+``.
 """
 
 from __future__ import annotations
@@ -44,12 +47,13 @@ from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, l
 GROUP_PREFIX = "Loom Surface"
 MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
         "spec_params", "horizon_0", "horizon_1")
-LUT = "albedo_lut"
+LUT = "closure_lut"
 
 # The headers' #defines that node mode uses; their values are read from the headers themselves
 # (osl_source.header_constants), so they live in one place.
-REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO_LUT_SIZE",
-                      "LOOM_SGGX_MIN_ROUGHNESS", "LOOM_LUT_SLICES", "LOOM_LUT_TZ_MAX")
+REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSURE_LUT_SIZE",
+                      "LOOM_LUT_PANELS",
+                      "LOOM_LUT_SLICES", "LOOM_LUT_TZ_MAX")
 
 
 # What this module transcribes, as code fingerprints (osl_source.code_fingerprint: comments and
@@ -57,11 +61,10 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_ALBEDO
 # fails when a source's code changes: read the diff, update the transcription below, run
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
-    "include/loom/closure_mapping.h": "c45bf04a19424a79",
+    "include/loom/closure_mapping.h": "678a0546758dcd7e",
     "include/loom/texel_guard.h": "c730c1caecf1a08f",
     "include/loom/visibility.h": "748a60042d62eda6",
-    "include/loom/sggx.h": "bb8987c508a03304",
-    "loom_cloth_surface.osl": "e8c0712608a0813a",
+    "loom_cloth_surface.osl": "9bc0ad51daaafa6c",
 }
 
 
@@ -73,14 +76,6 @@ def constants(required=REQUIRED_CONSTANTS) -> dict[str, float]:
         raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
                            f"add-on's osl/ sources present? {osl_source.osl_dir()})")
     return c
-
-
-# ======================================================================= sggx.h
-
-
-def sggx_fiber_roughness(roughness, K):
-    """sggx.h: sggx_fiber_roughness: clamp(roughness, LOOM_SGGX_MIN_ROUGHNESS, 1)."""
-    return clamp(roughness, K["LOOM_SGGX_MIN_ROUGHNESS"], 1.0)
 
 
 # ======================================================================= texel_guard.h
@@ -161,8 +156,8 @@ def texel_guard_geometry(c_frame: V, c_normal: V, c_info: V, gap: F, info_used=(
 
 def texel_guard_optics(k_rd: V, k_rs: F, k_td: V, k_ts: F, params: V):
     """texel_guard.h: texel_guard_optics, for what node mode reads: albedos 0-1 and the blend 0-1
-    of spec_params. The roughness (0.001-1) is guarded by sggx_fiber_roughness's clamp, which
-    has the same range. Returns (k_rd, k_rs, k_td, k_ts, blend)."""
+    of spec_params (the closures' roughnesses come from the closure LUT, not from the texel).
+    Returns (k_rd, k_rs, k_td, k_ts, blend)."""
     return (texel_guard_color(k_rd, 0.0, 1.0), texel_guard(k_rs, 0.0, 1.0),
             texel_guard_color(k_td, 0.0, 1.0), texel_guard(k_ts, 0.0, 1.0),
             texel_guard(params.z, 0.0, 1.0))
@@ -289,17 +284,17 @@ def surface_lut_slices(z, K):
     return s0, s1, f
 
 
-def surface_lut_uv(kind, x, y, slice_, K):
-    """closure_mapping.h: surface_lut_uv(kind, x, y, slice, lut_u, lut_v).
+def surface_lut_uv(kind, x, y, slice_, panel: float, K):
+    """closure_mapping.h: surface_lut_uv(kind, x, y, slice, panel, lut_u, lut_v).
 
-        n = LUT_SIZE; rows = n SLICES; row0 = slice n; if (kind > 1.5) row0 += rows
-        lut_u = (0.5 + clamp(x, 0, 1) (n - 1)) / n
+        n = CLOSURE_LUT_SIZE; rows = n SLICES; row0 = slice n; if (kind > 1.5) row0 += rows
+        lut_u = (panel n + 0.5 + clamp(x, 0, 1) (n - 1)) / (LUT_PANELS n)
         lut_v = (row0 + 0.5 + clamp(y, 0, 1) (n - 1)) / (2 rows)
     """
-    n = K["LOOM_ALBEDO_LUT_SIZE"]
+    n = K["LOOM_CLOSURE_LUT_SIZE"]
     rows = n * K["LOOM_LUT_SLICES"]
     row0 = slice_ * n + select(kind > 1.5, rows, 0.0)
-    lut_u = (0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / n
+    lut_u = (panel * n + 0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / (K["LOOM_LUT_PANELS"] * n)
     lut_v = (row0 + 0.5 + clamp(y, 0.0, 1.0) * (n - 1.0)) / (2.0 * rows)
     return lut_u, lut_v
 
@@ -310,6 +305,14 @@ def surface_lut_transmission_x(x, back):
         return back ? 1 - x : x
     """
     return select(back, 1.0 - x, x)
+
+
+def surface_transmission_tangent(t: V, back) -> V:
+    """closure_mapping.h: surface_transmission_tangent(t, back).
+
+        return back ? (t.x, t.y, -t.z) : t
+    """
+    return vec(t.x, t.y, t.z * (1.0 - 2.0 * back))
 
 
 def surface_glossy_light_visibility(V_: V, Nc: V, h: list, K, vis_amb) -> F:
@@ -323,40 +326,42 @@ def surface_glossy_light_visibility(V_: V, Nc: V, h: list, K, vis_amb) -> F:
     return select(1.0 - (Ls.z > 0.0), vis_amb, horizon_visibility(Ls, h, K))
 
 
-def surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb, vis_gl, lut_rs,
-                            lut_ggx, lut_ts):
+def surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb, vis_gl, lut_g,
+                            lut_h, lut_l):
     """closure_mapping.h: surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb,
-    vis_gl, lut_rs, lut_ggx, lut_ts) -> (w_gap, w_diffuse_np, w_diffuse_ns,
-    w_translucent_np, w_translucent_ns, w_glossy).
+    vis_gl, lut_g, lut_h, lut_l) -> (w_gap, w_diffuse_np, w_diffuse_ns, w_translucent_np,
+    w_translucent_ns, w_glossy, w_hair).
 
         open = 1 - clamp(c, 0, 1);  w_gap = 1 - open
         w_diffuse_np = k_rd (open w vis_v vis_amb)
         w_diffuse_ns = k_rd (open (1 - w) vis_v vis_amb)
         w_translucent_np = k_td (open w)
-        ratio = lut_ggx > 1e-4 ? clamp(lut_rs / lut_ggx, 0, 1 / lut_ggx) : 0
-        w_glossy = open k_rs vis_v vis_gl ratio
-        w_translucent_ns = k_td (open (1 - w)) + color(open k_ts max(lut_ts, 0))
+        w_glossy = open k_rs vis_v vis_gl max(lut_g, 0)
+        w_hair = open k_ts max(lut_h, 0)
+        w_translucent_ns = k_td (open (1 - w)) + color(open k_ts max(lut_l, 0))
     """
     open_ = 1.0 - clamp(c, 0.0, 1.0)
     w_gap = 1.0 - open_
     w_diffuse_np = k_rd * (open_ * w * vis_v * vis_amb)
     w_diffuse_ns = k_rd * (open_ * (1.0 - w) * vis_v * vis_amb)
     w_translucent_np = k_td * (open_ * w)
-    ratio = select(lut_ggx > 1e-4, clamp(lut_rs / lut_ggx, 0.0, 1.0 / lut_ggx), 0.0)
-    w_glossy = open_ * k_rs * vis_v * vis_gl * ratio
-    ts = open_ * k_ts * max_(lut_ts, 0.0)
-    w_translucent_ns = k_td * (open_ * (1.0 - w)) + vec(ts, ts, ts)
-    return w_gap, w_diffuse_np, w_diffuse_ns, w_translucent_np, w_translucent_ns, w_glossy
+    w_glossy = open_ * k_rs * vis_v * vis_gl * max_(lut_g, 0.0)
+    w_hair = open_ * k_ts * max_(lut_h, 0.0)
+    tl = open_ * k_ts * max_(lut_l, 0.0)
+    w_translucent_ns = k_td * (open_ * (1.0 - w)) + vec(tl, tl, tl)
+    return (w_gap, w_diffuse_np, w_diffuse_ns, w_translucent_np, w_translucent_ns, w_glossy,
+            w_hair)
 
 
 # ======================================================================= Cycles glossy node
 
 
-def glossy_node_inputs(a):
-    """Roughness and Anisotropy of a GGX Glossy BSDF node giving alpha_x = a (along its Tangent)
-    and alpha_y = 1; see the module docstring for Cycles' mapping."""
-    s = sqrt(a)
-    return sqrt(s), 1.0 - s
+def glossy_node_inputs(ax, ay):
+    """Roughness and Anisotropy of a GGX Glossy BSDF node giving alpha_x = ax (along its Tangent)
+    and alpha_y = ay; see the module docstring for Cycles' mapping: Roughness = (ax ay)^(1/4),
+    Anisotropy = 1 - sqrt(ax / ay) when ax <= ay, else sqrt(ay / ax) - 1."""
+    r = sqrt(ax / ay)
+    return sqrt(sqrt(ax * ay)), select(ax > ay, 1.0 / r - 1.0, 1.0 - r)
 
 
 # ======================================================================= images
@@ -410,11 +415,11 @@ def atlas_problem(atlas_dir: str) -> str | None:
     if missing:
         return f"maps missing: {', '.join(missing)}"
     K = constants()
-    n = int(K["LOOM_ALBEDO_LUT_SIZE"])
-    want = [n, 2 * n * int(K["LOOM_LUT_SLICES"])]
+    n = int(K["LOOM_CLOSURE_LUT_SIZE"])
+    want = [int(K["LOOM_LUT_PANELS"]) * n, 2 * n * int(K["LOOM_LUT_SLICES"])]
     got = list(textures[LUT].get("size", []))
     if got != want:
-        return f"albedo LUT is {got}, the shaders expect {want}"
+        return f"closure LUT is {got}, the shaders expect {want}"
     return None
 
 
@@ -430,17 +435,18 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     reads UV and the UV-map tangent of the active render UV map itself.
     ``interpolation`` is the Image Texture interpolation of the periodic maps ('Linear' for
     rendering; 'Closest' reads whole texels, which the parity tests use so that a render's mean
-    is exactly comparable with ``loom-bake eval bsdf --average`` over texels). The albedo LUT
+    is exactly comparable with ``loom-bake eval bsdf --average`` over texels). The closure LUT
     is always 'Linear' (the table is sampled bilinearly in every evaluator).
     """
     K = constants()
-    n_lut = int(K["LOOM_ALBEDO_LUT_SIZE"])
+    n_lut = int(K["LOOM_CLOSURE_LUT_SIZE"])
+    cols = int(K["LOOM_LUT_PANELS"]) * n_lut
     rows = 2 * n_lut * int(K["LOOM_LUT_SLICES"])
     lut_size = list(manifest["textures"][LUT]["size"])
-    if lut_size != [n_lut, rows]:
-        raise ValueError(f"albedo LUT is {lut_size[0]}x{lut_size[1]}; the shaders expect "
-                         f"{n_lut}x{rows} (LOOM_ALBEDO_LUT_SIZE, LOOM_LUT_SLICES): re-bake the "
-                         f"atlas with this version of loom-bake")
+    if lut_size != [cols, rows]:
+        raise ValueError(f"closure LUT is {lut_size[0]}x{lut_size[1]}; the shaders expect "
+                         f"{cols}x{rows} (LOOM_CLOSURE_LUT_SIZE, LOOM_LUT_PANELS, "
+                         f"LOOM_LUT_SLICES): re-bake the atlas with this version of loom-bake")
     if int(K["LOOM_HORIZON_DIRS"]) != 8:
         raise ValueError("the atlas stores 8 horizon directions (horizon_0, horizon_1)")
 
@@ -529,48 +535,52 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     with b.block("closure_mapping.h: surface_lut_coords, surface_lut_slices, surface_lut_uv"):
         lx, ly, lz = surface_lut_coords(V_, t, K)
         s0, s1, sf = surface_lut_slices(lz, K)
-        lu0, lv0 = surface_lut_uv(c_info[0], lx, ly, s0, K)
-        lu1, lv1 = surface_lut_uv(c_info[0], lx, ly, s1, K)
-        uv0 = b.label(vec(lu0, lv0, 0.0), "LUT uv, slice s0")
-        uv1 = b.label(vec(lu1, lv1, 0.0), "LUT uv, slice s1")
-        # A_ts: on a back face for the physical slab's tangent (surface_lut_transmission_x)
+        # the reflection panel at this view; the transmission panel on a back face for the
+        # physical slab's tangent (surface_lut_transmission_x)
         lxt = surface_lut_transmission_x(lx, back)
-        lut0, lvt0 = surface_lut_uv(c_info[0], lxt, ly, s0, K)
-        lut1, lvt1 = surface_lut_uv(c_info[0], lxt, ly, s1, K)
-        uvt0 = b.label(vec(lut0, lvt0, 0.0), "LUT uv (A_ts), slice s0")
-        uvt1 = b.label(vec(lut1, lvt1, 0.0), "LUT uv (A_ts), slice s1")
+        uvs = {}
+        for what, x_, panel in (("reflection", lx, 0.0), ("transmission", lxt, 1.0)):
+            for s_, which in ((s0, "s0"), (s1, "s1")):
+                lu, lv = surface_lut_uv(c_info[0], x_, ly, s_, panel, K)
+                uvs[what, which] = b.label(vec(lu, lv, 0.0), f"LUT uv ({what}), slice {which}")
 
-    with b.block("Albedo LUT (A_rs, A_ggx, A_ts), slices mixed (loom_cloth_surface.osl)"):
-        def lut_lookup(uv_a, uv_b, what):  # two slices, mixed by sf
+    with b.block("Closure LUT (g, ax, ay | h, r1, r2, l), slices mixed (loom_cloth_surface.osl)"):
+        def lut_lookup(what):  # two slices, mixed by sf
             looks = []
-            for uv_s, which in ((uv_a, "s0"), (uv_b, "s1")):
+            for which in ("s0", "s1"):
                 node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
                              label=f"{LUT} ({what}, {which})")
                 node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
-                b.link(uv_s, node.inputs["Vector"])
-                looks.append(b.vector_socket(node.outputs["Color"]))
-            return mix(looks[0], looks[1], sf)
+                b.link(uvs[what, which], node.inputs["Vector"])
+                looks.append((b.vector_socket(node.outputs["Color"]),
+                              b.float_socket(node.outputs["Alpha"])))
+            return mix(looks[0][0], looks[1][0], sf), mix(looks[0][1], looks[1][1], sf)
 
-        lut = b.label(lut_lookup(uv0, uv1, "A_rs, A_ggx"), "lut")
-        lut_t = b.label(lut_lookup(uvt0, uvt1, "A_ts"), "lut_t")
+        refl, _ = lut_lookup("reflection")
+        trans, trans_a = lut_lookup("transmission")
+        b.label(refl, "refl (g, ax, ay)")
+        b.label(trans, "trans (h, r1, r2)")
+        b.label(trans_a, "trans l")
 
     with b.block("closure_mapping.h: surface_closure_weights"):
-        (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy) = surface_closure_weights(
+        (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair) = surface_closure_weights(
             a_info, blend, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
-            lut.x, lut.y, lut_t.z)
+            refl.x, trans.x, trans_a)
         for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
                        (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
-                       (w_glossy, "w_glossy")):
+                       (w_glossy, "w_glossy"), (w_hair, "w_hair")):
             b.label(e, txt)
 
-    with b.block("Closure normals in world space, glossy roughness (loom_cloth_surface.osl)"):
+    with b.block("Closure normals and tangents in world space, glossy node inputs "
+                 "(loom_cloth_surface.osl)"):
         np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
         nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
         t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
-        a = b.label(sggx_fiber_roughness(c_par.x, K), "a")  # also texel_guard's roughness
-        rough, aniso = glossy_node_inputs(a)
-        b.label(rough, "Roughness = a^(1/4)")
-        b.label(aniso, "Anisotropy = 1 - sqrt(a)")
+        tt = surface_transmission_tangent(t, back)
+        tt_w = b.label(normalize(T * tt.x + B * tt.y + N * tt.z), "transmission tangent world")
+        rough, aniso = glossy_node_inputs(refl.y, refl.z)
+        b.label(rough, "Roughness = (ax ay)^(1/4)")
+        b.label(aniso, "Anisotropy")
 
     # ---------------------------------------------------------------- closures
     with b.block("Closures (closure_mapping.h table)"):
@@ -589,14 +599,22 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
         b.link(w_tns, t_ns.inputs["Color"])
         gl = b.new("ShaderNodeBsdfGlossy", distribution="GGX",
-                   label='microfacet("ggx", N_c, t, a, 1) * w_glossy')
+                   label='microfacet("ggx", N_c, t, ax, ay) * w_glossy')
         b.link(vec(w_glossy, w_glossy, w_glossy), gl.inputs["Color"])
         b.link(rough, gl.inputs["Roughness"])
         b.link(aniso, gl.inputs["Anisotropy"])
         b.link(0.0, gl.inputs["Rotation"])
         b.link(nc_w, gl.inputs["Normal"])
         b.link(t_w, gl.inputs["Tangent"])
-        total = b.add_shaders(n.outputs["BSDF"] for n in (transp, d_np, d_ns, t_np, t_ns, gl))
+        hair = b.new("ShaderNodeBsdfHair", component="Transmission",
+                     label="hair_transmission(N, r1, r2, t, 0) * w_hair")
+        b.link(vec(w_hair, w_hair, w_hair), hair.inputs["Color"])
+        b.link(0.0, hair.inputs["Offset"])
+        b.link(trans.y, hair.inputs["RoughnessU"])
+        b.link(trans.z, hair.inputs["RoughnessV"])
+        b.link(tt_w, hair.inputs["Tangent"])
+        total = b.add_shaders(n.outputs["BSDF"] for n in (transp, d_np, d_ns, t_np, t_ns, gl,
+                                                          hair))
         gout = b.new("NodeGroupOutput")
         b.connect(total, gout.inputs["BSDF"])
 

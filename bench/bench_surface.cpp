@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <random>
 
-#include "loom/albedo_lut.h"
+#include "loom/closure_lut.h"
 #include "loom/atlas.h"
 #include "loom/bake.h"
 #include "loom/evaluator.h"
@@ -26,12 +26,12 @@ void BM_PlyMaps(benchmark::State& st) {
 }
 BENCHMARK(BM_PlyMaps)->DenseRange(0, 3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_AlbedoLut(benchmark::State& st) {
+void BM_ClosureLut(benchmark::State& st) {
   auto spec = spec_at(int(st.range(0)));
-  for (auto _ : st) benchmark::DoNotOptimize(loom::bake_albedo_lut(spec));
+  for (auto _ : st) benchmark::DoNotOptimize(loom::bake_closure_lut(spec));
   st.SetLabel(loom::to_string(spec.quality));
 }
-BENCHMARK(BM_AlbedoLut)->DenseRange(0, 3)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ClosureLut)->DenseRange(0, 3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 const loom::Atlas& atlas() {
   static loom::Atlas a = [] {

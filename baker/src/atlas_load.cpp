@@ -42,8 +42,8 @@ Atlas atlas_from_files(const fs::path& dir, json manifest,
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: textures.{}: {}", dir.string(), name, e.what()));
     }
-    if (name == "albedo_lut") {
-      a.albedo_lut = std::move(img);
+    if (name == "closure_lut") {
+      a.closure_lut = std::move(img);
     } else {
       a.names.push_back(name);
       a.images.push_back(std::move(img));

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "loom/atlas.h"
-#include "loom/albedo_lut.h"
+#include "loom/closure_lut.h"
 #include "loom/ply_tables.h"
 #include "loom/render_tables.h"
 
@@ -25,7 +25,7 @@ namespace {
 
 const char* const kSurfaceMaps[] = {"ply_frame",   "ply_normal",      "yarn_info",
                                    "albedo_reflect", "albedo_transmit", "spec_params",
-                                   "horizon_0",   "horizon_1",       "albedo_lut"};
+                                   "horizon_0",   "horizon_1",       "closure_lut"};
 
 /// The type and range checks of the manifest's fields that the deep readers (load_ply_tables,
 /// load_raywave, the shading tables) take as they are: `errors` gets one message naming the
@@ -229,7 +229,7 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
     }
   }
   // The contract the evaluators rely on: every map, four channels, one size for all maps, and
-  // the albedo LUT's layout.
+  // the closure LUT's layout.
   const auto& tex = m["textures"];
   std::optional<json> map_size;
   for (const char* name : kSurfaceMaps) {
@@ -243,13 +243,13 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
       errors.push_back(fmt::format("textures.{}: expected 4 channels and a size", name));
       continue;
     }
-    if (std::string(name) == "albedo_lut") {
-      if (t["size"] != json::array({LOOM_ALBEDO_LUT_SIZE,
-                                    2 * LOOM_LUT_SLICES * LOOM_ALBEDO_LUT_SIZE}))
-        errors.push_back(fmt::format("textures.albedo_lut: size {} is not {} x {} (another "
+    if (std::string(name) == "closure_lut") {
+      const int w = LOOM_LUT_PANELS * LOOM_CLOSURE_LUT_SIZE,
+                h = 2 * LOOM_LUT_SLICES * LOOM_CLOSURE_LUT_SIZE;
+      if (t["size"] != json::array({w, h}))
+        errors.push_back(fmt::format("textures.closure_lut: size {} is not {} x {} (another "
                                      "baker's layout: re-bake the atlas)",
-                                     t["size"].dump(), LOOM_ALBEDO_LUT_SIZE,
-                                     2 * LOOM_LUT_SLICES * LOOM_ALBEDO_LUT_SIZE));
+                                     t["size"].dump(), w, h));
     } else if (!map_size) {
       map_size = t["size"];
     } else if (*map_size != t["size"]) {

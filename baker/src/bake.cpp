@@ -8,7 +8,7 @@
 #include <optional>
 
 #include "bake_stages.h"
-#include "loom/albedo_lut.h"
+#include "loom/closure_lut.h"
 #include "loom/atlas_writer.h"
 #include "loom/colour.h"
 #include "loom/ply_maps.h"
@@ -97,7 +97,7 @@ json bake_surface_stage(const BakeContext& ctx) {
   const bool reuse = ctx.source.has_value();
   SurfaceMaps maps = bake_surface_maps(ctx.spec, ctx.progress_fn, /*horizons=*/!reuse);
   // (Before the maps are written: the "write" progress is the stage's last.)
-  const Image lut = reuse ? Image() : bake_albedo_lut(ctx.spec, ctx.progress_fn);
+  const Image lut = reuse ? Image() : bake_closure_lut(ctx.spec, ctx.progress_fn);
   for (size_t k = 0; k < maps.images.size(); ++k) {
     const MapInfo& mi = maps.info[k];
     if (reuse && mi.name.rfind("albedo_", 0) != 0) {  // only the albedo maps hold colour
@@ -114,21 +114,24 @@ json bake_surface_stage(const BakeContext& ctx) {
     ctx.progress("write", double(k + 1) / (maps.images.size() + 1));
   }
   if (reuse) {
-    ctx.out.copy(ctx.source->first, ctx.source->second, "albedo_lut");  // per unit colour
+    ctx.out.copy(ctx.source->first, ctx.source->second, "closure_lut");  // per unit colour
   } else {
     ctx.out.write(
-        lut, "albedo_lut", false, "clamp",
-        {{"channels", {"A_rs", "A_ggx", "A_ts", "one"}},
-         {"range", {{0, 2}, {0, 2}, {0, 2}, {1, 1}}},
+        lut, "closure_lut", false, "clamp",
+        {{"channels", {"g | h", "ax | r1", "ay | r2", "0 | l"}},
+         {"range", {{0, kClosureLutMaxWeight}, {0, 1}, {0, 1}, {0, kClosureLutMaxWeight}}},
          {"units", {"", "", "", ""}},
          {"tiling", "clamp"},
          {"description",
-          fmt::format("directional albedos per unit k for the closure weights (closure_mapping.h):"
-                      " rows kind-major (warp, then weft, from the bottom), then {0} slices of the "
-                      "ply tangent elevation t_z in [0, {1}], then {2} rows of cos theta_view (row "
-                      "j at max(j/{3}, {4})); columns: view azimuth about t over [0, pi]",
-                      LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_ALBEDO_LUT_SIZE,
-                      LOOM_ALBEDO_LUT_SIZE - 1, kLutMinCos)}});
+          fmt::format("fitted closure parameters per unit k (closure_mapping.h, closure_fit.h): "
+                      "left panel reflection (GGX weight g, alpha_x along t, alpha_y, 0), right "
+                      "panel transmission (hair transmission weight h, roughness r1, r2, "
+                      "translucent weight l), each {2} columns of the view azimuth about t over "
+                      "[0, pi]; rows kind-major (warp, then weft, from the bottom), then {0} slices "
+                      "of the ply tangent elevation t_z in [0, {1}], then {2} rows of "
+                      "cos theta_view (row j at max(j/{3}, {4}))",
+                      LOOM_LUT_SLICES, LOOM_LUT_TZ_MAX, LOOM_CLOSURE_LUT_SIZE,
+                      LOOM_CLOSURE_LUT_SIZE - 1, kLutMinCos)}});
   }
   return {{"warp_yarns", maps.warp_yarns},
           {"weft_yarns", maps.weft_yarns},

@@ -31,7 +31,7 @@ struct BakeContext {
   }
 };
 
-/// Geometry maps, horizons and the closure albedo LUT (the surface tier; every atlas has them).
+/// Geometry maps, horizons and the closure LUT (the surface tier; every atlas has them).
 /// Returns the repeat's size and yarn counts for the manifest.
 nlohmann::json bake_surface_stage(const BakeContext& ctx);
 

@@ -147,6 +147,42 @@ float MicrofacetRefraction::eval(vec3 L) const {
   return common / (1.0f + lambda_I_ + lambda(cos_NO));
 }
 
+HairLobe::HairLobe(vec3 N, vec3 T, float roughness1, float roughness2, float offset, vec3 I,
+                   bool transmission)
+    : N_(N), T_(T), offset_(offset), transmission_(transmission) {
+  r1_ = std::clamp(roughness1, 0.001f, 1.0f);
+  r2_ = std::clamp(roughness2, 0.001f, 1.0f);
+  const float Iz = dot(T, I);
+  locy_ = normalize(I - T * Iz);
+  theta_r_ = float(M_PI_2) - std::acos(std::clamp(Iz, -1.0f, 1.0f));
+  a_ = std::atan(((float(M_PI_2) + theta_r_) * 0.5f - offset) / r1_);
+  b_ = std::atan(((-float(M_PI_2) + theta_r_) * 0.5f - offset) / r1_);
+}
+
+float HairLobe::eval(vec3 L) const {
+  const float cos_NL = dot(N_, L);
+  if (transmission_ ? cos_NL >= 0.0f : cos_NL < 0.0f) return 0.0f;
+  const float wo_z = dot(T_, L);
+  const vec3 wo_y = normalize(L - T_ * wo_z);
+  const float theta_i = float(M_PI_2) - std::acos(std::clamp(wo_z, -1.0f, 1.0f));
+  const float cosphi = std::clamp(dot(wo_y, locy_), -1.0f, 1.0f);
+  if (float(M_PI_2) - std::fabs(theta_i) < 0.001f) return 0.0f;
+  const float t = (theta_i + theta_r_) * 0.5f - offset_;
+  const float theta_pdf = r1_ / (2 * (t * t + r1_ * r1_) * (a_ - b_) * std::cos(theta_i));
+  float phi_pdf;
+  if (!transmission_) {
+    if (cosphi < 0.0f) return 0.0f;
+    float phi = std::acos(cosphi) / r2_;
+    phi = std::fabs(phi) < float(M_PI) ? phi : float(M_PI);
+    phi_pdf = std::cos(phi * 0.5f) * 0.25f / r2_;
+  } else {
+    const float c = 2 * std::atan(float(M_PI_2) / r2_);
+    const float p = float(M_PI) - std::fabs(std::acos(cosphi));
+    phi_pdf = r2_ / (c * (p * p + r2_ * r2_));
+  }
+  return phi_pdf * theta_pdf;
+}
+
 float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L) {
   return GGXReflection(N, T, alpha_x, alpha_y, Ng, I).eval(L);
 }

@@ -4,8 +4,9 @@
 #include <functional>
 #include <tbb/parallel_for.h>
 #include <mutex>
+#include <random>
 
-#include "loom/albedo_lut.h"
+#include "loom/closure_lut.h"
 #include "loom/cycles_closures.h"
 
 namespace loom {
@@ -130,14 +131,15 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
   float vis_gl = front ? surface_glossy_light_visibility(V, Nc, hor) : 1.0f;
   float lx, ly, lz;
   surface_lut_coords(V, t, lx, ly, lz);
-  float lut[3], lut_t[3];
-  sample_albedo_lut(a.albedo_lut, p.kind, lx, ly, lz, lut);
-  sample_albedo_lut(a.albedo_lut, p.kind, surface_lut_transmission_x(lx, front ? 0 : 1), ly, lz,
-                    lut_t);
-  float w_gap, w_glossy;
+  float refl[4], trans[4];  // the closure LUT's panels (g, ax, ay, 0) and (h, r1, r2, l)
+  sample_closure_lut(a.closure_lut, p.kind, lx, ly, lz, 0, refl);
+  sample_closure_lut(a.closure_lut, p.kind, surface_lut_transmission_x(lx, front ? 0 : 1), ly, lz,
+                     1, trans);
+  float w_gap, w_glossy, w_hair;
   color w_dnp, w_dns, w_tnp, w_tns;
   surface_closure_weights(p.gap, p.blend, p.k_rs, p.k_rd, p.k_ts, p.k_td, vis_v, vis_amb, vis_gl,
-                          lut[0], lut[1], lut_t[2], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy);
+                          refl[0], trans[0], trans[3], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy,
+                          w_hair);
   const vec3 z(0, 0, 1);
   const vec3 Nv = cycles::ensure_valid_specular_reflection(z, V, Nc);
   // Node mode's Translucent BSDF raises its normal like a glossy one (Cycles svm/closure.h);
@@ -146,7 +148,10 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
       backend == Backend::Nodes ? cycles::ensure_valid_specular_reflection(z, V, np) : np;
   vec3 sum = w_dnp * cycles::diffuse_eval(np, L, z) + w_dns * cycles::diffuse_eval(z, L, z) +
              w_tnp * cycles::translucent_eval(np_t, L, z) + w_tns * cycles::translucent_eval(z, L, z) +
-             vec3(w_glossy * cycles::ggx_eval(Nv, t, rough, 1.0f, z, V, L));
+             vec3(w_glossy * cycles::ggx_eval(Nv, t, refl[1], refl[2], z, V, L)) +
+             vec3(w_hair * cycles::HairLobe(z, surface_transmission_tangent(t, front ? 0 : 1),
+                                            trans[1], trans[2], 0, V, true)
+                               .eval(L));
   vec3 f = sum / std::fabs(L.z);
   return {f.x, f.y, f.z};
 }
@@ -188,15 +193,20 @@ std::vector<vec3> sphere_grid(int n) {
 MappingError mapping_error_loop(const Atlas& a, int texels, int views, int sphere_n,
                                 const std::function<MappingPair(const SurfacePoint&, vec3)>& setup) {
   const Image& ref = a.map("ply_frame");
-  // Texels on a jittered-free stratified lattice; views on a spherical Fibonacci set.
+  // Texels on a jittered lattice (one texel at a fixed pseudo-random place in each cell: a
+  // lattice aligned with the repeat can see only gaps or only crossings); views on a spherical
+  // Fibonacci set.
   int side = std::max(1, int(std::lround(std::sqrt(double(texels)))));
   const std::vector<vec3> V = fibonacci_views(views), L = sphere_grid(sphere_n);
   const double dw = sphere_grid_dw(sphere_n);
   MappingError out;
   std::mutex mu;
   tbb::parallel_for(0, side * side, [&](int idx) {
-    int ix = int((idx % side + 0.5) / side * ref.width);
-    int iy = int((idx / side + 0.5) / side * ref.height);
+    std::mt19937 rng(0x9E3779B9u ^ unsigned(idx));
+    std::uniform_real_distribution<double> jitter(0.0, 1.0);
+    const double jx = jitter(rng), jy = jitter(rng);
+    int ix = std::min(ref.width - 1, int((idx % side + jx) / side * ref.width));
+    int iy = std::min(ref.height - 1, int((idx / side + jy) / side * ref.height));
     SurfacePoint p = texel_surface(a, ix, iy);
     double l1_sum = 0, l1_worst = 0, en_sum = 0, en_worst = 0;
     int counted = 0;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "loom/cycles_closures.h"
+#include "sphere_quadrature.h"
 
 using loom::shading::normalize;
 using loom::shading::vec3;
@@ -98,4 +99,49 @@ TEST(CyclesClosures, ValidSpecularReflectionLiftsTheMirrorDirection) {
   vec3 K = cy::ensure_valid_specular_reflection(Z, I, N3);
   EXPECT_EQ(K.x, N3.x);
   EXPECT_EQ(K.z, N3.z);
+}
+
+using loom_test::sphere_integral;
+
+TEST(CyclesClosures, HairLobesIntegrateToTheirClosedForms) {
+  // With N along the view's direction across the fiber (locy), the normal's cut keeps exactly
+  // the azimuths |phi| <= pi/2 (reflection, light on N's side) and |phi - pi| <= pi/2
+  // (transmission, light on the other side). The theta
+  // factor integrates to 1 over the cone's Cauchy; the azimuth factors to
+  // sin(min(pi / (4 r2), pi / 2)) (reflection) and 2 atan(pi / (2 r2)) / c_TT = 1
+  // (transmission).
+  const vec3 T = normalize(vec3(1, 0.3f, 0.2f));
+  for (float r2 : {0.3f, 1.0f}) {
+    const vec3 I = normalize(vec3(0.2f, -0.5f, 0.8f));
+    const vec3 locy = normalize(I - T * loom::shading::dot(T, I));
+    const cy::HairLobe refl(locy, T, 0.15f, r2, 0, I, false), trans(locy, T, 0.15f, r2, 0, I, true);
+    const double er = sphere_integral([&](vec3 L) { return double(refl.eval(L)); }, 1000);
+    const double et = sphere_integral([&](vec3 L) { return double(trans.eval(L)); }, 1000);
+    EXPECT_NEAR(er, std::sin(std::min(M_PI / (4 * r2), M_PI / 2)), 0.01) << "r2 " << r2;
+    EXPECT_NEAR(et, 1.0, 0.01) << "r2 " << r2;
+  }
+}
+
+TEST(CyclesClosures, HairTransmissionPeaksOnTheConeOppositeTheView) {
+  // The lobe's density in (latitude, azimuth) about T (eval cos theta: eval is a pdf in solid
+  // angle) peaks on the specular cone L.T = -I.T, on the far side of the fiber from the viewer;
+  // the closure does not change when the tangent is reversed.
+  const vec3 T = normalize(vec3(1, 0.1f, 0.3f)), I = normalize(vec3(0.3f, 0.2f, 0.9f));
+  const cy::HairLobe h(Z, T, 0.1f, 0.4f, 0, I, true), hm(Z, -T, 0.1f, 0.4f, 0, I, true);
+  float best = 0;
+  vec3 arg;
+  for (int i = 0; i < 400; ++i)
+    for (int j = 0; j < 800; ++j) {
+      const double z = -(i + 0.5) / 400, r = std::sqrt(1 - z * z), p = (j + 0.5) * M_PI / 400;
+      const vec3 L{float(r * std::cos(p)), float(r * std::sin(p)), float(z)};
+      const float f = h.eval(L);
+      EXPECT_NEAR(hm.eval(L), f, 1e-4f * (1 + f));
+      const float lat = std::sqrt(std::max(0.0f, 1 - loom::shading::dot(L, T) * loom::shading::dot(L, T)));
+      if (f * lat > best) best = f * lat, arg = L;
+    }
+  using loom::shading::dot;
+  EXPECT_NEAR(dot(arg, T), -dot(I, T), 0.02);
+  const vec3 locy = normalize(I - T * dot(T, I)), across = normalize(arg - T * dot(T, arg));
+  EXPECT_LT(dot(across, locy), -0.99f);
+  EXPECT_EQ(h.eval(normalize(vec3(0.1f, 0.2f, 0.5f))), 0.0f);  // above N: no transmission
 }

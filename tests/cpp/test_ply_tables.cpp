@@ -5,7 +5,7 @@
 
 #include <fstream>
 
-#include "loom/albedo_lut.h"
+#include "loom/closure_lut.h"
 #include "loom/diffraction_tables.h"
 #include "loom/ply_tables.h"
 #include "loom/speckle_noise.h"
@@ -277,7 +277,7 @@ void colour_only_change_reuses_the_simulation() {
   const auto lin = cc.srgb_to_linear({0.1, 0.6, 0.2});
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(ab["rgb_spectrum"][c].get<double>(), lin[size_t(c)], 2e-3);
   EXPECT_LT(ab["sigma_rgb_per_mm"][1].get<double>(), ab["sigma_rgb_per_mm"][0].get<double>());
-  // The copied surface maps and albedo LUT are what the new spec itself bakes to (they do not
+  // The copied surface maps and closure LUT are what the new spec itself bakes to (they do not
   // depend on colour): computed afresh here and compared with the atlas's files (maps in half).
   spec.warp.color_linear = loom::ColourConverter().srgb_to_linear(spec.warp.color_input);
   spec.weft.color_linear = loom::ColourConverter().srgb_to_linear(spec.weft.color_input);
@@ -291,9 +291,9 @@ void colour_only_change_reuses_the_simulation() {
       ASSERT_NEAR(got.data[i], want.data[i], std::ldexp(std::fabs(want.data[i]), -10) + 1e-4)
           << fresh.info[k].name << " " << i;
   }
-  const auto lut = loom::bake_albedo_lut(spec);
-  ASSERT_EQ(atlas.albedo_lut.data.size(), lut.data.size());
-  for (size_t i = 0; i < lut.data.size(); ++i) ASSERT_FLOAT_EQ(atlas.albedo_lut.data[i], lut.data[i]);
+  const auto lut = loom::bake_closure_lut(spec);
+  ASSERT_EQ(atlas.closure_lut.data.size(), lut.data.size());
+  for (size_t i = 0; i < lut.data.size(); ++i) ASSERT_FLOAT_EQ(atlas.closure_lut.data[i], lut.data[i]);
 }
 
 TEST(PlyTables, SimulationKeyIgnoresOnlyColourAndName) {

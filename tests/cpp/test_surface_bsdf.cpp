@@ -5,33 +5,14 @@
 #include <cmath>
 #include <random>
 
-#include "loom/albedo_lut.h"
 #include "loom/shading.h"
+#include "sphere_quadrature.h"
 
 using namespace loom::shading;
+using loom_test::sph;
+using loom_test::sphere_integral;
 
 namespace {
-
-vec3 sph(double theta, double phi) {
-  return {float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
-          float(std::cos(theta))};
-}
-
-/// Midpoint quadrature over the whole sphere in (cos theta, phi): n x 2n cells.
-template <class F>
-double sphere_integral(F f, int n) {
-  double sum = 0;
-  for (int i = 0; i < n; ++i) {
-    double z = -1 + (i + 0.5) * 2.0 / n;
-    double r = std::sqrt(std::max(0.0, 1 - z * z));
-    for (int j = 0; j < 2 * n; ++j) {
-      double p = (j + 0.5) * M_PI / n;
-      vec3 w{float(r * std::cos(p)), float(r * std::sin(p)), float(z)};
-      sum += f(w);
-    }
-  }
-  return sum * (2.0 / n) * (M_PI / n);
-}
 
 float no_horizon[LOOM_HORIZON_DIRS] = {-1, -1, -1, -1, -1, -1, -1, -1};
 
@@ -184,48 +165,4 @@ TEST(Visibility, HorizonInterpolationAndRamp) {
   vec3 low = vec3(0.8f * float(std::cos(M_PI / 4)), 0.8f * float(std::sin(M_PI / 4)), 0.2f);
   EXPECT_FLOAT_EQ(horizon_visibility(normalize(low), hor), 0.0f);  // below 0.5 - 0.05
   EXPECT_FLOAT_EQ(horizon_visibility(vec3(0, 0, -1), hor), 1.0f);
-}
-
-TEST(AlbedoLUT, ConeQuadratureMatchesUniformQuadrature) {
-  // lobe_albedos integrates in coordinates centred on the specular cone; a plain sphere grid
-  // must agree for lobes wide enough for the grid.
-  for (float a : {0.2f, 0.5f})
-    for (double th : {0.3, 1.0}) {
-      vec3 V = sph(th, 0.6);
-      vec3 t = normalize(vec3(1, 0.2f, 0.5f));
-      auto A = loom::lobe_albedos(V, t, a, 3.0f);
-      double rs = sphere_integral(
-          [&](vec3 i) {
-            return i.z > 0 ? double(surface_specular_reflect(i, V, t, a, 3.0f)) * i.z : 0.0;
-          },
-          1200);
-      double ts = sphere_integral(
-          [&](vec3 i) {
-            return i.z < 0 ? double(surface_specular_transmit(i, V, t, a, 3.0f)) * -i.z : 0.0;
-          },
-          1200);
-      EXPECT_NEAR(A.rs, rs, 0.01 * rs + 1e-4);
-      EXPECT_NEAR(A.ts, ts, 0.01 * ts + 1e-4);
-    }
-}
-
-TEST(AlbedoLUT, DraftQuadratureIsCloseToReference) {
-  // The quality presets trade quadrature samples for bake time; draft must stay within a few
-  // percent of reference where the albedos matter (> 0.02).
-  int dn, dm, rn, rm;
-  loom::lut_quadrature(loom::Quality::Draft, dn, dm);
-  loom::lut_quadrature(loom::Quality::Reference, rn, rm);
-  double worst = 0;
-  for (int slice : {0, 3, 7})
-    for (int j : {2, 15, 31})
-      for (int ix : {0, 10, 31}) {
-        vec3 V, t;
-        loom::lut_configuration(ix, j, slice, V, t);
-        auto d = loom::lobe_albedos(V, t, 0.08f, 4.0f, dn, dm);
-        auto r = loom::lobe_albedos(V, t, 0.08f, 4.0f, rn, rm);
-        for (auto [x, y] : {std::pair{d.rs, r.rs}, std::pair{d.ggx, r.ggx}, std::pair{d.ts, r.ts}})
-          if (y > 0.02) worst = std::max(worst, std::fabs(x - y) / y);
-      }
-  EXPECT_LT(worst, 0.05);
-  std::printf("draft vs reference LUT quadrature: worst relative difference %.4f\n", worst);
 }

@@ -56,7 +56,7 @@ struct Atlas {
   nlohmann::json manifest;
   std::vector<std::string> names;  ///< map names, same order as images
   std::vector<Image> images;       ///< rows bottom-up (flipped back from the files)
-  Image albedo_lut;
+  Image closure_lut;
   const Image& map(const std::string& name) const;
 };
 

@@ -12,6 +12,13 @@
 //   Diffuse-type closures (diffuse, translucent) whose normal differs from the shading normal Ns
 //      are multiplied by bump_shadowing_term (Chiang et al. 2019, "Taming the Shadow Terminator";
 //      Cycles bsdf.h, with the material's default "Bump Map Correction" on).
+//   hair_reflection(N, r1, r2, T, offset) / hair_transmission (bsdf_hair.h, the Kajiya-Kay-like
+//      pair; OSL and SVM's Hair BSDF node with a linked Tangent alike; SVM negates Offset):
+//      eval = pdf = phi_pdf theta_pdf, theta_h = (theta_L + theta_I) / 2 about the fiber's normal
+//      plane (the specular cone T.L = -T.I when offset = 0), Cauchy in theta_h of width r1;
+//      in the azimuth about T, reflection cos(phi / (2 r2)) / (4 r2) for L on I's side
+//      (|phi| <= pi r2 and <= pi/2), transmission Cauchy of width r2 about phi = pi. Reflection is
+//      zero below N, transmission above (N raised by ensure_valid_specular_reflection).
 //   Microfacet closures get N = ensure_valid_specular_reflection(Ng, I, N) at setup
 //      (bsdf_util.h, maybe_ensure_valid_specular_reflection, OSL closures_setup.h and SVM alike):
 //      the normal is raised towards Ng until the mirror direction of I clears the surface.
@@ -29,6 +36,19 @@ float translucent_eval(vec3 N, vec3 L, vec3 Ns);
 float bump_shadowing_term(vec3 Ns, vec3 N, vec3 L);
 vec3 ensure_valid_specular_reflection(vec3 Ng, vec3 I, vec3 N);
 float ggx_eval(vec3 N, vec3 T, float alpha_x, float alpha_y, vec3 Ng, vec3 I, vec3 L);
+
+/// hair_reflection / hair_transmission set up for a view I (bsdf_hair.h); r1, r2 clamped to
+/// [0.001, 1] as bsdf_hair_*_setup does.
+struct HairLobe {
+  HairLobe(vec3 N, vec3 T, float roughness1, float roughness2, float offset, vec3 I,
+           bool transmission);
+  float eval(vec3 L) const;
+
+ private:
+  vec3 N_, T_, locy_;
+  float r1_, r2_, offset_, theta_r_, a_, b_;
+  bool transmission_;
+};
 
 enum class Distribution { GGX, Beckmann };
 
