@@ -872,7 +872,7 @@ def _new_group(name: str, inputs, outputs, description: str):
 
 
 def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
-                     noise_instances=1):
+                     noise_instances=1, functions: dict | None = None):
     """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closures, the
     microfacet albedo look-ups, the light-side visibility, raywave_lobe_weights and the lobe's
     Glossy, Refraction and Translucent BSDFs (a closure whose share is 0 has weight 0). Built
@@ -898,7 +898,7 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
                                            ("forward", "NodeSocketColor"),
                                            ("energy", "NodeSocketColor")),
                        "Loom ray-wave: one fitted lobe as Cycles closures (raywave_lobes.h)")
-    b = Builder(group)
+    b = Builder(group, functions)
     eta = K["LOOM_RAYWAVE_ETA"]
     with b.block("Lobe inputs (loom_lobes)"):
         gin = b.new("NodeGroupInput")
@@ -907,8 +907,8 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         hor = [i[f"hor{k}"] for k in range(8)]
         V_, back = i["V"], i["back"]
     with b.block("raywave_lobes.h: raywave_lobe_closures"):
-        z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr = raywave_lobe_closures(
-            V_, i["xp"], i["yp"], i["t"], i["p0"], i["mu1"], i["p1"], K)
+        z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr = b.call(
+            raywave_lobe_closures, V_, i["xp"], i["yp"], i["t"], i["p0"], i["mu1"], i["p1"], K=K)
     with b.block("microfacet_albedo_uv, the albedo LUT (reflection, refraction), "
                  "raywave_lobe_visibility(z)"):
         albedos = []
@@ -923,9 +923,10 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         albedo_r = b.label(albedos[0].x, "albedo_r")
         albedo_t = b.label(albedos[1].y, "albedo_t")
         z_vis = vec(z.x, z.y, max_(z.z, 1e-6))
-        vis_z = b.label(select(back, 1.0, node_mode.horizon_visibility(z_vis, hor, K)), "vis_z")
+        vis_z = b.label(select(back, 1.0, b.call(node_mode.horizon_visibility, z_vis, hor, K=K)),
+                        "vis_z")
     with b.block("asg.h: asg_integral"):
-        integral = b.label(asg_integral(i["mu1"], i["p1"].x, i["p1"].y, K), "integral")
+        integral = b.label(b.call(asg_integral, i["mu1"], i["p1"].x, i["p1"].y, K=K), "integral")
     with b.block("raywave_lobes.h: raywave_lobe_weights"):
         w_refl, w_refr, w_transl = raywave_lobe_weights(
             integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["k_f"],
@@ -937,9 +938,9 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         with b.block("speckle_noise.h: noise_lobe_uv, the noise at two blur levels (Eq. S.39)"):
             _, _, lz = asg_frame(i["p0"].x, i["p0"].y, i["p0"].z)
             wi = vec(0.0, cos(i["theta_i"]), sin(i["theta_i"]))
-            nu, nv0, nv1, nt = noise_lobe_uv(lz, wi, refl, i["mu1"], i["p1"].x,
-                                             i["noise_instance"], i["noise_shift"],
-                                             noise_instances, K)
+            nu, nv0, nv1, nt = b.call(noise_lobe_uv, lz, wi, refl, i["mu1"], i["p1"].x,
+                                      i["noise_instance"], i["noise_shift"], noise_instances,
+                                      K=K)
             looked = []
             for v_ in (nv0, nv1):
                 node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
@@ -1016,13 +1017,15 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         return images[tex_name]
 
     albedo_img = image(rw["shading"]["microfacet_albedo"])
+    functions: dict = {}  # the function groups (Builder.call) of this build
     nz = _noise(manifest)
     if nz:  # f_refl and f_high lobes read different noise tiles (speckle_noise.h)
         lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, K,
-                                              image(nz[part]), part == "refl", nz["instances"])
+                                              image(nz[part]), part == "refl", nz["instances"],
+                                              functions)
                        for part in ("refl", "high")}
     else:
-        one = build_lobe_group(f"{name} lobe", albedo_img, K)
+        one = build_lobe_group(f"{name} lobe", albedo_img, K, functions=functions)
         lobe_groups = {"refl": one, "high": one}
     for lg in lobe_groups.values():
         lg["loom_atlas"] = os.path.abspath(atlas_dir)
@@ -1036,7 +1039,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
     group["loom_tier"] = "raywave"
 
-    b = Builder(group)
+    b = Builder(group, functions)
 
     def table(tex_name, s, tv, interp="Linear", what=""):
         node = b.new("ShaderNodeTexImage", interpolation=interp, extension="EXTEND",
@@ -1087,11 +1090,12 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.label(np_, "n_p")
         hor = [node_mode.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
                                                           c_h1.x, c_h1.y, c_h1.z, a_h1)]
-        xp, yp, theta_i, h = raywave_ply_space(V_, t, np_)
+        xp, yp, theta_i, h = b.call(raywave_ply_space, V_, t, np_)
         b.label(theta_i, "theta_i")
         b.label(h, "h")
         open_ = b.label(1.0 - a_info, "open")  # a_info guarded to 0-1 above
-        vis_v = b.label(select(back, 1.0, node_mode.horizon_visibility(V_, hor, K)), "vis_v")
+        vis_v = b.label(select(back, 1.0, b.call(node_mode.horizon_visibility, V_, hor, K=K)),
+                        "vis_v")
         weft = b.label(c_info[0] > 1.5, "weft (yarn_info.r > 1.5)")
         if nz:
             noise_inst, noise_shift = noise_pick(c_info[2], c_info[1], nz["instances"], K)
@@ -1224,15 +1228,15 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                     row = diffraction_cell_row(t_y[c], size)
                     gs, gt = diffraction_sample_uv(u_x, row, tx, ty, nx, ny, size, K)
                     t_x, _ = table(dif["file"], gs, gt, what=f"t_x, lobe {k} channel {c}")
-                    L, ok1 = diffraction_light_direction(
-                        V_, sgn_x * diffraction_table_s(t_x[c], K),
-                        sgn_y * diffraction_table_s(t_y[c], K))
-                    Nd, alpha, ok2 = diffraction_lobe_closure(V_, L, K)
+                    L, ok1 = b.call(diffraction_light_direction,
+                                    V_, sgn_x * diffraction_table_s(t_x[c], K),
+                                    sgn_y * diffraction_table_s(t_y[c], K))
+                    Nd, alpha, ok2 = b.call(diffraction_lobe_closure, V_, L, K=K)
                     ok = ok1 * ok2
                     ls, lt = microfacet_albedo_uv(dot(Nd, V_), alpha, K)
                     E, _ = table(rw["shading"]["microfacet_albedo"], ls, lt,
                                  what=f"lobe {k} channel {c}")
-                    w = gap * diffraction_lobe_weight(V_, L, p_out[c], E.y, K) * ok
+                    w = gap * b.call(diffraction_lobe_weight, V_, L, p_out[c], E.y, K=K) * ok
                     unit = tuple(1.0 if i == c else 0.0 for i in range(3))
                     rf = b.new("ShaderNodeBsdfRefraction", distribution="BECKMANN",
                                label=f'microfacet("beckmann", N, N, a, a, eta, 1), lobe {k} '

@@ -9,9 +9,11 @@ Arguments after ``--`` are parsed by each test with ``parse_args``; common ones:
 
 from __future__ import annotations
 
+import atexit
 import argparse
 import math
 import os
+import shutil
 import sys
 import tempfile
 import traceback
@@ -48,6 +50,7 @@ def enable_addon():
     repo = next((r for r in prefs.extensions.repos if r.module == EXT_REPO_MODULE), None)
     if repo is None:
         tmp = tempfile.mkdtemp(prefix="loom-ext-")
+        atexit.register(shutil.rmtree, tmp, True)  # the symlink only, not addon/
         os.symlink(os.path.join(REPO, "addon"), os.path.join(tmp, "loom"))
         prefs.extensions.repos.new(name=EXT_REPO_MODULE, module=EXT_REPO_MODULE,
                                    custom_directory=tmp, source="USER")

@@ -318,7 +318,8 @@ def main():
     assert mat.loom.mode_used == "NODES", mat.loom.mode_used
     groups = [n.node_tree for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
     assert len(groups) == 1 and groups[0].get("loom_tier") == "raywave", groups
-    lobes = [n for n in groups[0].nodes if n.bl_idname == "ShaderNodeGroup"]
+    lobes = [n for n in groups[0].nodes if n.bl_idname == "ShaderNodeGroup"
+             and n.node_tree.name.startswith(groups[0].name + " lobe")]
     with open(os.path.join(mat.loom.atlas_dir, "manifest.json"), encoding="utf-8") as f:
         rw = json.load(f)["raywave"]["yarns"]["warp"]
     assert len(lobes) == rw["high"]["lobes"] + rw["refl"]["lobes"], len(lobes)
