@@ -8,7 +8,7 @@
 #     absent), from the release build in build/, which builds only what they run.
 #   bash scripts/test.sh [--full]
 # --full adds the long sweeps (LOOM_FULL=1: the C++ tests' full randomised sweeps, the
-# Blender parity renders at 64 samples instead of 16, the organza's first diffraction pair) and
+# Blender parity renders at 64 samples instead of 16, the organza's first two diffraction pairs) and
 # fuzzes each target for 600 s.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -58,11 +58,14 @@ DIFFRACTION_PAIRS = [
 # 3 % at 64 samples, 1.4 % at 256 and 0.7 % at 1024, so these pairs start at 1024 rather than
 # reach it after two renders that cannot pass.
 DIFFRACTION_SAMPLES = 1024
-# At 1024 samples a pair costs over a minute of the test command: its fast run leaves out the
-# first pair (the x arm seen along the normal), which scripts/test.sh --full (LOOM_FULL=1) adds.
-# The x arm stays in the fast run through the third pair (seen off the normal), the view along
-# the normal through the second (the y arm).
-DIFFRACTION_FULL_ONLY = {len(PAIRS)}
+# At 1024 samples a pair costs about four minutes of one core (64 x 64 pixels, measured on
+# the organza): the fast run keeps the third pair only (the x arm seen off the normal: the
+# marginal and the conditional look-ups, the tiles, the view-dependent weight), and
+# scripts/test.sh --full (LOOM_FULL=1) adds the first two (the x and the y arm seen along the
+# normal). The y arm stays in the fast run through blender.raywave_render (node mode: both
+# arms of the cross against its diagonals); the emulator these pairs compare with is checked
+# against the model along and across an arm by DiffractionSampling.ClosuresMatchTheModelInTheArms.
+DIFFRACTION_FULL_ONLY = {len(PAIRS), len(PAIRS) + 1}
 # Node mode is compared with the emulator's node-mode backend (loom-bake eval --backend nodes):
 # Cycles' SVM Translucent BSDF lifts its normal with ensure_valid_specular_reflection when the
 # material's Bump Map Correction is on (kernel/svm/closure.h), OSL's translucent() does not; the
