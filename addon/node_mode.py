@@ -41,8 +41,10 @@ import os
 import bpy
 
 from . import osl_source
-from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_,
-                         min_, mix, normalize, select, sqrt, vec, wrap)
+from .node_texel_guard import texel_guard_geometry, texel_guard_horizon, texel_guard_optics
+from .node_visibility import horizon_ambient_visibility, horizon_visibility
+from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
+                         mix, normalize, select, sqrt, vec)
 
 GROUP_PREFIX = "Loom Surface"
 MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
@@ -62,8 +64,6 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSUR
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "678a0546758dcd7e",
-    "include/loom/texel_guard.h": "c730c1caecf1a08f",
-    "include/loom/visibility.h": "748a60042d62eda6",
     "loom_cloth_surface.osl": "9bc0ad51daaafa6c",
 }
 
@@ -76,154 +76,6 @@ def constants(required=REQUIRED_CONSTANTS) -> dict[str, float]:
         raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
                            f"add-on's osl/ sources present? {osl_source.osl_dir()})")
     return c
-
-
-# ======================================================================= texel_guard.h
-#
-# Both shaders bring every atlas texel back into the baker's ranges before any shading math; node
-# mode does the same for the texels its math reads (height, h, the optical thickness and the IOR
-# are read by neither group's math). The guard costs render time (each node is evaluated at every
-# shading point), so it is built from as few nodes as keep it safe, and differs from the header
-# only for values no baked atlas holds:
-# * a NaN becomes the range's low end, not the field's neutral value: one Clamp node per value
-#   (Cycles' clamp is min(max(x, lo), hi) with max(a, b) = a > b ? a : b, so a NaN comes out as lo).
-#   In Blender 4.3 on the CPU a NaN never reaches node mode anyway: Cycles sets every channel of a
-#   float pixel to 0 when one is not finite (scene/image.cpp, "Make sure we don't have buggy
-#   values"), and its SVM image textures read a half NaN or Inf as a finite 65536 or more and a
-#   stored 0 as 2^-15 (util/half.h's half_to_float rebiases the exponent without special cases;
-#   later versions convert exactly where the CPU can, as GPUs do: there a NaN arrives as NaN);
-# * a vector whose length overflows a float (components beyond 1e19, only in float maps) gets the
-#   fallback frame instead of its direction. "No direction" is a length of at most 1e-3 in both.
-# A first, literal transcription took 159 nodes and made surface renders 1.38x as long; this one
-# takes 54 (1.08x; 160 px, 128 samples, one thread, medians of 6 renders).
-
-_BIG = 3.0e38  # a finite bound below FLT_MAX that a node socket stores exactly
-
-
-def texel_guard(x, lo: float, hi: float):
-    """texel_guard.h: texel_guard(x, lo, hi, fallback) = isnan(x) ? fallback : clamp(x, lo, hi),
-    as one Clamp node: a NaN gives lo (see above)."""
-    return clamp(x, lo, hi)
-
-
-def texel_guard_color(c: V, lo: float, hi: float) -> V:
-    """texel_guard.h: texel_guard_color(c, lo, hi, fallback): each channel by texel_guard."""
-    return vec(*(texel_guard(c[i], lo, hi) for i in range(3)))
-
-
-def texel_guard_unit(v: V) -> V:
-    """texel_guard.h: texel_guard_unit(v): v / |v|, or the zero vector when v is not finite or has
-    no direction (no longer than 1e-3).
-
-    Each component is clamped to +-3e38 first (a NaN becomes -3e38, an Inf 3e38), so the Mix
-    node's unused side stays finite; Vector Math NORMALIZE gives 0 for 0."""
-    cl = texel_guard_color(v, -_BIG, _BIG)
-    return select(length(cl) > 1e-3, normalize(cl), (0.0, 0.0, 0.0))
-
-
-def texel_guard_frame(t: V, n: V):
-    """texel_guard.h: texel_guard_frame(t, n) -> (t, n).
-
-        nn = texel_guard_unit(n); if (!(nn.z > 0)) nn = (0,0,1)
-        tt = texel_guard_unit(t)
-        if (!(length(cross(tt, nn)) > 1e-3) || !(length((tt.x, tt.y, 0)) > 1e-3)):
-            a = |nn.x| > 0.9 ? (0,1,0) : (1,0,0);  tt = normalize(a - nn dot(a, nn))
-    """
-    nn = texel_guard_unit(n)
-    nn = select(nn.z > 0.0, nn, (0.0, 0.0, 1.0))
-    tt = texel_guard_unit(t)
-    a = select(fabs(nn.x) > 0.9, (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))
-    fb = normalize(a - nn * dot(a, nn))
-    keep = (length(cross(tt, nn)) > 1e-3) * (length(tt * (1.0, 1.0, 0.0)) > 1e-3)
-    return select(keep, tt, fb), nn
-
-
-def texel_guard_horizon(s):
-    """texel_guard.h: texel_guard_horizon(s) = texel_guard(s, -1, 1, 0)."""
-    return texel_guard(s, -1.0, 1.0)
-
-
-def texel_guard_geometry(c_frame: V, c_normal: V, c_info: V, gap: F, info_used=(0,)):
-    """texel_guard.h: texel_guard_geometry, for what node mode reads: the ply frame (t, n),
-    yarn_info (kind 0-2, along 0-1, ply id 0-1: only the channels in ``info_used``, the others
-    pass as they are) and the gap coverage (0-1). Returns (t, n, (kind, along, ply_id), gap)."""
-    t, n = texel_guard_frame(c_frame, c_normal)
-    ranges = ((0.0, 2.0), (0.0, 1.0), (0.0, 1.0))
-    info = tuple(texel_guard(c_info[i], *ranges[i]) if i in info_used else c_info[i]
-                 for i in range(3))
-    return t, n, info, texel_guard(gap, 0.0, 1.0)
-
-
-def texel_guard_optics(k_rd: V, k_rs: F, k_td: V, k_ts: F, params: V):
-    """texel_guard.h: texel_guard_optics, for what node mode reads: albedos 0-1 and the blend 0-1
-    of spec_params (the closures' roughnesses come from the closure LUT, not from the texel).
-    Returns (k_rd, k_rs, k_td, k_ts, blend)."""
-    return (texel_guard_color(k_rd, 0.0, 1.0), texel_guard(k_rs, 0.0, 1.0),
-            texel_guard_color(k_td, 0.0, 1.0), texel_guard(k_ts, 0.0, 1.0),
-            texel_guard(params.z, 0.0, 1.0))
-
-
-# ======================================================================= visibility.h
-
-
-def horizon_sine(w: V, h: list, K) -> F:
-    """visibility.h: horizon_sine(w, h).
-
-        phi = atan2(w.y, w.x); if (phi < 0) phi += 2 pi
-        x = phi / (2 pi) * DIRS;  k = floor(x);  f = x - k;  k1 = (k + 1) % DIRS
-        return mix(h[k], h[k1], clamp(f, 0, 1))
-
-    Nodes cannot index an array, so the linear interpolation between bins k and k+1 on the
-    circle is written as the identical sum of tents: for x in [0, DIRS),
-    mix(h[k], h[k+1], f) = sum_j h[j] max(0, 1 - d_j) with d_j the circular distance from x to
-    bin j, d_j = |wrap(x - j + DIRS/2, DIRS, 0) - DIRS/2| (only j = k, k+1 have d_j < 1, with
-    weights 1 - f and f)."""
-    n = int(K["LOOM_HORIZON_DIRS"])
-    phi = atan2(w.y, w.x)
-    phi = select(phi < 0.0, phi + 2.0 * math.pi, phi)
-    x = phi / (2.0 * math.pi) * n
-    terms = []
-    for j in range(n):
-        d = fabs(wrap(x + (0.5 * n - j), float(n), 0.0) - 0.5 * n)
-        terms.append(h[j] * max_(1.0 - d, 0.0))
-    return _balanced_sum(terms)
-
-
-def horizon_visibility(w: V, h: list, K) -> F:
-    """visibility.h: horizon_visibility(w, h).
-
-        if (w.z <= 0) return 1
-        s = horizon_sine(w, h)
-        x = clamp((w.z - (s - SOFT)) / (2 SOFT), 0, 1);  return x x (3 - 2 x)
-    """
-    soft = K["LOOM_HORIZON_SOFTNESS"]
-    s = horizon_sine(w, h, K)
-    x = clamp((w.z - (s - soft)) / (2.0 * soft), 0.0, 1.0)
-    smooth = x * x * (3.0 - 2.0 * x)
-    below = 1.0 - (w.z > 0.0)  # w.z <= 0
-    return select(below, 1.0, smooth)
-
-
-def horizon_ambient_visibility(h: list, K) -> F:
-    """visibility.h: horizon_ambient_visibility(h).
-
-        sum = 0; for k: s = clamp(h[k], 0, 1); sum += 1 - s s;  return sum / DIRS
-    """
-    n = int(K["LOOM_HORIZON_DIRS"])
-    terms = []
-    for k in range(n):
-        s = clamp(h[k], 0.0, 1.0)
-        terms.append(1.0 - s * s)
-    return _balanced_sum(terms) / float(n)
-
-
-def _balanced_sum(terms):
-    """terms[0] + terms[1] + ... as a balanced tree of Add nodes (short dependency chains keep
-    the group's layout compact; the sum is the same)."""
-    while len(terms) > 1:
-        terms = [terms[i] + terms[i + 1] if i + 1 < len(terms) else terms[i]
-                 for i in range(0, len(terms), 2)]
-    return terms[0]
 
 
 # ======================================================================= closure_mapping.h

@@ -46,7 +46,7 @@ import os
 
 import bpy
 
-from . import node_mode
+from . import node_mode, node_texel_guard, node_visibility
 from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, exp, fabs,
                          floor, length, max_, min_, normalize, select, sin, sqrt, vec)
 
@@ -72,7 +72,7 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_DOUBLE_LAYER_BLOCKS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
-# checks both). texel_guard.h is transcribed in node_mode.py and fingerprinted there.
+# checks both). texel_guard.h and visibility.h: node_texel_guard.py, node_visibility.py.
 TRANSCRIBED_FROM = {
     "include/loom/raywave_lobes.h": "ca74348eaa1d3868",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
@@ -147,7 +147,7 @@ def asg_integral(mu1_in, mu2_in, c, K):
         sb = sin(ps)
         cb = cos(ps)
         terms.append(exp(-(hi * sb * sb)) * asg_chord(lo, cb) * cb)
-    numeric = 2.0 * c * node_mode._balanced_sum(terms) * dpsi
+    numeric = 2.0 * c * node_visibility.balanced_sum(terms) * dpsi
     value = select(lo < K["LOOM_ASG_CLOSED_FORM_MU"], numeric, closed)
     return select(c > 0.0, value, 0.0)
 
@@ -923,7 +923,7 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         albedo_r = b.label(albedos[0].x, "albedo_r")
         albedo_t = b.label(albedos[1].y, "albedo_t")
         z_vis = vec(z.x, z.y, max_(z.z, 1e-6))
-        vis_z = b.label(select(back, 1.0, b.call(node_mode.horizon_visibility, z_vis, hor, K=K)),
+        vis_z = b.label(select(back, 1.0, b.call(node_visibility.horizon_visibility, z_vis, hor, K=K)),
                         "vis_z")
     with b.block("asg.h: asg_integral"):
         integral = b.label(b.call(asg_integral, i["mu1"], i["p1"].x, i["p1"].y, K=K), "integral")
@@ -1084,17 +1084,17 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         Vw = b.vector_socket(geo.outputs["Incoming"])
         V_ = b.label(vec(dot(Vw, T), dot(Vw, B), dot(Vw, Nw)), "V (tangent frame)")
         # Texels outside the baker's ranges back into them first (node_mode: texel_guard.h).
-        t, np_, c_info, a_info = node_mode.texel_guard_geometry(
+        t, np_, c_info, a_info = node_texel_guard.texel_guard_geometry(
             c_frame, c_normal, c_info, a_info, info_used=(0, 1, 2) if nz else (0,))
         b.label(t, "t")
         b.label(np_, "n_p")
-        hor = [node_mode.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
+        hor = [node_texel_guard.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
                                                           c_h1.x, c_h1.y, c_h1.z, a_h1)]
         xp, yp, theta_i, h = b.call(raywave_ply_space, V_, t, np_)
         b.label(theta_i, "theta_i")
         b.label(h, "h")
         open_ = b.label(1.0 - a_info, "open")  # a_info guarded to 0-1 above
-        vis_v = b.label(select(back, 1.0, b.call(node_mode.horizon_visibility, V_, hor, K=K)),
+        vis_v = b.label(select(back, 1.0, b.call(node_visibility.horizon_visibility, V_, hor, K=K)),
                         "vis_v")
         weft = b.label(c_info[0] > 1.5, "weft (yarn_info.r > 1.5)")
         if nz:

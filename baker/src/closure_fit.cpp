@@ -3,10 +3,8 @@
 #include <ceres/ceres.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <vector>
-
 
 namespace loom {
 
@@ -20,7 +18,7 @@ SpecularClosureSet::SpecularClosureSet(const SpecularClosures& p, vec3 V, vec3 t
 
 float SpecularClosureSet::eval(vec3 L) const {
   if (L.z > 0) return p_.ggx_w > 0 ? p_.ggx_w * ggx_.eval(L) : 0.0f;
-  float f = p_.tl_w * std::max(-L.z, 0.0f) / float(M_PI);
+  float f = p_.tl_w * cycles::translucent_eval(vec3(0, 0, 1), L, vec3(0, 0, 1));
   if (p_.ht_w > 0) f += p_.ht_w * ht_.eval(L);
   return f;
 }
@@ -33,7 +31,6 @@ struct Samples {
   std::vector<double> dw, model;
   double albedo = 0;
 };
-
 
 double relative_l1(const Samples& s, const SpecularClosures& p, vec3 V, vec3 t) {
   if (s.albedo <= 0) return 0;

@@ -1,10 +1,10 @@
 """Node mode is a transcription of the shared OSL headers: fail when their code has changed
-since (node_mode.TRANSCRIBED_FROM, node_mode_raywave.TRANSCRIBED_FROM), and check that node mode reads its constants from them.
+since (the TRANSCRIBED_FROM of node_mode, node_mode_raywave, node_texel_guard and
+node_visibility), and check that node mode reads its constants from them.
 
     blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_transcription.py
 
-On failure: diff the named source, update the named module (addon/node_mode.py or
-addon/node_mode_raywave.py) to match, run test_parity.py (on a surface and on ray-wave atlases),
+On failure: diff the named source, update the named module (addon/<module>.py) to match, run test_parity.py (on a surface and on ray-wave atlases),
 and record the printed fingerprint in that module's TRANSCRIBED_FROM.
 """
 
@@ -17,21 +17,22 @@ import loom_testlib as lt  # noqa: E402
 
 def main():
     lt.enable_addon()
-    from loom import node_mode, node_mode_raywave, osl_source
+    from loom import node_mode, node_mode_raywave, node_texel_guard, node_visibility, osl_source
 
     d = osl_source.osl_dir()
     assert d is not None, "OSL sources not found next to the add-on"
     changed = []
-    for module in (node_mode, node_mode_raywave):
+    for module in (node_mode, node_mode_raywave, node_texel_guard, node_visibility):
         for rel, fp in sorted(module.TRANSCRIBED_FROM.items()):
             now = osl_source.code_fingerprint(os.path.join(d, rel))
             status = "ok" if now == fp else "CHANGED"
             print(f"loom-test: {module.__name__}: {rel}: transcribed {fp}, now {now} {status}")
             if now != fp:
                 changed.append(f"{rel} in {module.__name__} (now {now})")
-        k = module.constants()  # raises if a constant node mode needs is gone
-        print(f"loom-test: {module.__name__}: constants from the headers: "
-              + ", ".join(f"{n}={k[n]:g}" for n in module.REQUIRED_CONSTANTS))
+        if hasattr(module, "constants"):  # the group builders: they pass K to the others
+            k = module.constants()  # raises if a constant node mode needs is gone
+            print(f"loom-test: {module.__name__}: constants from the headers: "
+                  + ", ".join(f"{n}={k[n]:g}" for n in module.REQUIRED_CONSTANTS))
     assert not changed, ("shader code changed since node mode was transcribed: "
                          + ", ".join(changed) + "; see this test's docstring")
 

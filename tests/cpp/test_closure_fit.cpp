@@ -113,10 +113,20 @@ TEST(ClosureFit, FittedClosuresCarryTheModelsAlbedoAndAreNoWorseThanTheUnfittedM
           const Judged t0 = judge(unfitted, V, t, a, 4.0f, false);
           const auto where = ::testing::Message() << "a " << a << " cell " << ix << "," << j << ","
                                                   << slice;
-          for (const Judged* h : {&r, &tr})
-            if (h->albedo > 0.01) EXPECT_LT(std::fabs(h->energy), 0.03) << where;
-          if (r.albedo > 0.01) EXPECT_LT(r.l1, r0.l1 + 0.02) << where;
-          if (tr.albedo > 0.01) EXPECT_LT(tr.l1, t0.l1 + 0.02) << where;
+          for (const Judged* h : {&r, &tr}) {
+            if (h->albedo > 0.01) {
+              EXPECT_LT(std::fabs(h->energy), 0.03) << where;
+            }
+          }
+          // "No worse" up to 0.02: the baker keeps or drops a fit by the L1 on its own judge
+          // quadrature (ClosureFitOptions::judge_n x judge_m), coarser than this one, where two
+          // candidates within a few thousandths can swap ranks.
+          if (r.albedo > 0.01) {
+            EXPECT_LT(r.l1, r0.l1 + 0.02) << where;
+          }
+          if (tr.albedo > 0.01) {
+            EXPECT_LT(tr.l1, t0.l1 + 0.02) << where;
+          }
           before_r += r0.l1 * r.albedo, after_r += r.l1 * r.albedo;
           before_t += t0.l1 * tr.albedo, after_t += tr.l1 * tr.albedo;
           wr += r.albedo, wt += tr.albedo;

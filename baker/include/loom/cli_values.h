@@ -1,7 +1,7 @@
 // Values on loom-bake's command line: the hand-written string -> value parsers (numbers in a
 // range, comma-separated lists, directions, the fiber region, the diffraction aperture, colours
 // and ASG lobes). They live in loom_core so that unit tests (tests/cpp/test_cli_values.cpp) and a
-// fuzzer (tests/fuzz/fuzz_cli_values.cpp) reach them; baker/tools/loom_bake.cpp only calls them.
+// fuzzer (tests/fuzz/fuzz_cli_values.cpp) reach them; loom-bake (baker/tools/cli/) only calls them.
 //
 // Contract: every function returns a value within its documented range (every number finite
 // unless stated otherwise) or throws CliValueError, whose what() is a one-line message naming the

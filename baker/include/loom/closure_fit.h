@@ -5,10 +5,11 @@
 //
 // Objective (issue 31): the relative L1 distance over the sphere of light directions, with the
 // cosine, made smooth by Charbonnier's penalty sqrt(e^2 + eps^2) - eps, separately for the two
-// hemispheres (k_rs and k_ts scale them independently per texel). Each fit starts from the
-// unfitted mapping (GGX (a, 1) rescaled to A_rs, Lambertian translucency of albedo A_ts) and
-// from a start where the hair closures carry all the energy; the better by the exact L1 wins,
-// and a fit that ends worse than the unfitted mapping is discarded, so no cell gets worse.
+// hemispheres (k_rs and k_ts scale them independently per texel). Reflection starts from the
+// unfitted mapping (GGX (a, 1) rescaled to A_rs); transmission from the hair closure carrying
+// all of A_ts (from the unfitted Lambertian translucency its roughnesses have no gradient).
+// Each fit is then rescaled to the model's albedo and judged by the L1 on a finer quadrature:
+// one that is not better there than the unfitted mapping is discarded, so no cell gets worse.
 #pragma once
 #include <algorithm>
 #include <cmath>
