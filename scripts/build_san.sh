@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The sanitizer builds (AddressSanitizer + UndefinedBehaviorSanitizer, -O2 -g) that
+# The sanitizer builds (AddressSanitizer + UndefinedBehaviorSanitizer, -O2 -g1) that
 # scripts/test.sh runs its C++ tests and fuzzers from:
 #   bash scripts/build_san.sh cpp    build-san/: g++, the C++ unit tests (CTest label cpp) and
 #                                    the loom-bake they run

@@ -24,7 +24,7 @@
 // texel per node, read bilinearly like the nodes (Loom keeps the scale-downs at the nodes, not per
 // block: asg_fit.h).
 //
-// Closures (choices, measured by the closure emulator, loom-bake report):
+// Closures (choices, measured by the closure emulator: loom-bake eval mapping --by-kind):
 //   * a lobe whose centre z lies on the viewer's side of the cloth: an anisotropic Beckmann
 //     reflection microfacet("beckmann", N, T, a_x, a_y, 1, 0) with N = normalize(V + z), the half
 //     vector that reflects V into z, so the closure peaks at the lobe centre; T and the two
