@@ -1,5 +1,7 @@
 #include "loom/ply_scattering.h"
 
+#include "loom/fiber_optics.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -10,34 +12,6 @@ namespace loom {
 namespace {
 
 int64_t floor_div(int64_t a, int64_t b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0))); }
-
-/// Fresnel reflectance of unpolarised light at a smooth interface, cos_i > 0 on the incident
-/// side, eta = n_transmitted / n_incident; 1 under total internal reflection.
-double fresnel_dielectric(double cos_i, double eta, double& cos_t) {
-  double sin2_t = (1 - cos_i * cos_i) / (eta * eta);
-  if (sin2_t >= 1) {
-    cos_t = 0;
-    return 1;
-  }
-  cos_t = std::sqrt(1 - sin2_t);
-  double rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-  double rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-  return 0.5 * (rs * rs + rp * rp);
-}
-
-/// Counter-based random numbers: SplitMix64 seeded by (seed, slice, ray).
-struct RayRng {
-  uint64_t state;
-  RayRng(uint64_t seed, uint64_t slice, uint64_t ray)
-      : state(seed * 0x9E3779B97F4A7C15ull ^ (slice << 40) ^ (slice >> 24) ^ ray * 0xD1B54A32D192ED03ull) {}
-  double next() {
-    uint64_t x = (state += 0x9E3779B97F4A7C15ull);
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    x ^= x >> 31;
-    return double(x >> 11) * (1.0 / 9007199254740992.0);
-  }
-};
 
 /// Smallest multiple q (1..8) of the pitch that holds whole migration cycles.
 int period_in_pitches(double s) {
@@ -237,19 +211,10 @@ bool PlyGeometry::intersect_entry(const Vec3d& o, const Vec3d& d, double t_min, 
 bool PlyGeometry::intersect_exit(int segment, double z_offset, const Vec3d& o, const Vec3d& d,
                                  Hit& hit) const {
   const Segment& s = seg_[size_t(segment)];
-  Vec3d D = Vec3d{o.x, o.y, o.z - z_offset} - s.p0;
-  double da = dot(d, s.axis), Da = dot(D, s.axis);
-  Vec3d dp = d - s.axis * da, Dp = D - s.axis * Da;
-  double qa = dot(dp, dp);
-  if (qa < 1e-18) return false;  // along the axis: never meets the wall
-  double qb = 2 * dot(Dp, dp), qc = dot(Dp, Dp) - r_ * r_;
-  double disc = std::max(qb * qb - 4 * qa * qc, 0.0);
-  double t = (-qb + std::sqrt(disc)) / (2 * qa);
-  if (!(t > 0)) return false;
-  hit.t = t;
+  if (!cylinder_exit(s.p0, s.axis, r_, Vec3d{o.x, o.y, o.z - z_offset}, d, hit.t, hit.normal))
+    return false;
   hit.segment = segment;
   hit.z_offset = z_offset;
-  hit.normal = normalized(Dp + dp * t);
   return true;
 }
 
@@ -264,7 +229,7 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
   out.h = h;
   out.energy.assign(size_t(K), {});
   std::vector<double> refl(bins, 0), high(bins * size_t(K), 0);
-  double unscattered = 0, reflected = 0;
+  double unscattered = 0, reflected_w = 0;
   std::vector<double> high_e(size_t(K), 0), trunc_e(size_t(K), 0);
   std::vector<double> sig_um(static_cast<size_t>(K));
   for (int k = 0; k < K; ++k) sig_um[size_t(k)] = s.sigmas[size_t(k)] * 1e-3;  // 1/mm -> 1/um
@@ -291,7 +256,7 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
     size_t b = size_t(t) * size_t(P) + size_t(p);
     if (pa.pure_refl) {
       refl[b] += pa.weight;
-      reflected += pa.weight;
+      reflected_w += pa.weight;
       return;
     }
     for (int k = 0; k < K; ++k) {
@@ -329,8 +294,8 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
         Vec3d pos = pa.o + pa.d * hit.t;
         double cos_i = -dot(pa.d, hit.normal), cos_t;
         double F = fresnel_dielectric(cos_i, ior, cos_t);
-        Vec3d refl_d = normalized(pa.d + hit.normal * (2 * cos_i));
-        Vec3d refr_d = normalized(pa.d * (1 / ior) + hit.normal * (cos_i / ior - cos_t));
+        Vec3d refl_d = reflected(pa.d, hit.normal);
+        Vec3d refr_d = refracted(pa.d, hit.normal, cos_i, cos_t, ior);
         bool reflect;
         if (pa.events == 0) {
           // First hit: follow both branches with their Fresnel weights.
@@ -373,11 +338,11 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
           }
           if (rng.next() < Fi) {  // internal reflection
             o = q;
-            d = normalized(d - ex.normal * (2 * ci));
+            d = reflected(d, ex.normal);
             continue;
           }
           o = q;
-          d = normalized(d * ior + ex.normal * (cto - ci * ior));
+          d = refracted(d, ex.normal * -1.0, ci, cto, 1 / ior);
           break;
         }
         if (truncated) {
@@ -402,7 +367,7 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
   }
   for (int k = 0; k < K; ++k) {
     PlySimEnergy& e = out.energy[size_t(k)];
-    e.reflected = reflected / N;
+    e.reflected = reflected_w / N;
     e.unscattered = unscattered / N;
     e.higher_order = high_e[size_t(k)] / N;
     e.truncated = trunc_e[size_t(k)] / N;
