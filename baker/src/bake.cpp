@@ -143,8 +143,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
   fs::path dir = fs::absolute(dir_in).lexically_normal();
   if (dir.filename().empty()) dir = dir.parent_path();
   ColourConverter cc(opt.ocio_config);
-  for (YarnSpec* y : {&spec.warp, &spec.weft})
-    y->color_linear = y->color_space == "srgb" ? cc.srgb_to_linear(y->color_input) : y->color_input;
+  resolve_yarn_colours(spec, cc);
   const json canon = canonical_spec(spec);
   const std::string bake_key = sha256_string(canon.dump() + cc.describe().dump() + baker_id());
 

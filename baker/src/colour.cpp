@@ -1,5 +1,7 @@
 #include "loom/colour.h"
 
+#include "loom/spec.h"
+
 #include <OpenColorIO/OpenColorIO.h>
 
 #include <stdexcept>
@@ -97,6 +99,11 @@ nlohmann::json ColourConverter::describe() const {
           {"from", impl_->src},
           {"to", impl_->dst},
           {"ocio_version", OCIO::GetVersion()}};
+}
+
+void resolve_yarn_colours(FabricSpec& spec, const ColourConverter& cc) {
+  for (YarnSpec* y : {&spec.warp, &spec.weft})
+    y->color_linear = y->color_space == "srgb" ? cc.srgb_to_linear(y->color_input) : y->color_input;
 }
 
 }  // namespace loom

@@ -49,6 +49,7 @@ struct FiberTruthScene::Impl {
   std::vector<FiberMaterial> materials;
   std::array<double, 4> tile{};
   double z_lo = 0, z_hi = 0, eps = 1e-3;
+  size_t curves = 0;
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -182,7 +183,10 @@ void FiberTruthScene::Impl::trace_ray(const Vec3d& wi, const TruthSettings& s, R
     sum[size_t(c)] += w[size_t(c)];
     sum2[size_t(c)] += w[size_t(c)] * w[size_t(c)];
   }
-  if (!touched) out.direct += 1;
+  if (!touched) {  // the delta at -wi: counted apart, not in the density (header comment)
+    out.direct += 1;
+    return;
+  }
   const int res = s.res;
   const int row = std::clamp(int(std::floor((d.z + 1) * 0.5 * res)), 0, res - 1);
   const int col = std::clamp(int(std::floor((std::atan2(d.y, d.x) + M_PI) / (2 * M_PI) * res)), 0,
@@ -196,6 +200,7 @@ FiberTruthScene::FiberTruthScene(const FiberCurves& curves, const std::vector<ui
   Impl& I = *impl_;
   I.materials = std::move(materials);
   I.tile = tile;
+  I.curves = curves.curves();
   if (!(tile[0] < tile[2] && tile[1] < tile[3]))
     throw std::invalid_argument("tile: x0 < x1 and y0 < y1 are needed");
   if (material.size() != curves.curves())
@@ -255,7 +260,7 @@ FiberTruthScene::FiberTruthScene(const FiberCurves& curves, const std::vector<ui
 
 FiberTruthScene::~FiberTruthScene() = default;
 
-size_t FiberTruthScene::segments() const { return impl_->seg.size(); }
+size_t FiberTruthScene::curves() const { return impl_->curves; }
 
 TruthResult FiberTruthScene::trace(const Vec3d& wi_in, const TruthSettings& s) const {
   const Impl& I = *impl_;
@@ -280,6 +285,7 @@ TruthResult FiberTruthScene::trace(const Vec3d& wi_in, const TruthSettings& s) c
   out.res = s.res;
   out.rays = s.rays;
   out.segments = I.seg.size();
+  out.curves = I.curves;
   out.tile_um = I.tile;
   out.z_lo_um = I.z_lo, out.z_hi_um = I.z_hi;
   std::vector<double> bins(size_t(s.res) * size_t(s.res) * 3, 0.0);
@@ -334,16 +340,18 @@ std::array<FiberMaterial, 2> truth_materials(const FabricSpec& spec) {
   return out;
 }
 
-TruthResult fiber_truth(const FabricSpec& spec, const Vec3d& wi, const TruthSettings& s) {
-  const auto tile = truth_tile(spec, s.min_yarns);
+std::unique_ptr<FiberTruthScene> make_truth_scene(const FabricSpec& spec, int min_yarns) {
+  const auto tile = truth_tile(spec, min_yarns);
   const FiberCurves curves = realize_fiber_region(spec, {tile[0], tile[1], tile[2], tile[3]});
   std::vector<uint8_t> material(curves.curves());
   for (size_t c = 0; c < material.size(); ++c) material[c] = curves.yarn[c] % 2;  // warp even
   const auto m = truth_materials(spec);
-  FiberTruthScene scene(curves, material, {m[0], m[1]}, tile);
-  TruthResult r = scene.trace(wi, s);
-  r.curves = curves.curves();
-  return r;
+  return std::make_unique<FiberTruthScene>(curves, material,
+                                           std::vector<FiberMaterial>{m[0], m[1]}, tile);
+}
+
+TruthResult fiber_truth(const FabricSpec& spec, const Vec3d& wi, const TruthSettings& s) {
+  return make_truth_scene(spec, s.min_yarns)->trace(wi, s);
 }
 
 }  // namespace loom

@@ -10,44 +10,13 @@
 #include <stdexcept>
 #include <vector>
 
-#include "loom/evaluator.h"
-#include "loom/raywave_bsdf.h"
+#include "loom/atlas_bsdf.h"
 
 namespace loom {
 
 using namespace shading;
 
 namespace {
-
-/// One atlas's f |cos L| (green) at (u, v), for a view: set up once per (point, view).
-class Bsdf {
- public:
-  explicit Bsdf(const Atlas& a) : a_(a), raywave_(a.manifest.value("tier", "") == "raywave") {
-    if (raywave_) data_ = std::make_unique<RaywaveData>(load_raywave(a));
-  }
-  bool raywave() const { return raywave_; }
-  /// The function of L at (u, v) seen from v.
-  std::function<float(vec3)> at(float u, float v, vec3 wo) const {
-    if (raywave_) {
-      const Image& ref = a_.map("ply_frame");
-      const int ix = std::min(ref.width - 1, int(u * ref.width));
-      const int iy = std::min(ref.height - 1, int(v * ref.height));
-      const RaywavePoint q(*data_, texel_surface(a_, ix, iy), wo, Evaluator::Model,
-                           /*gap_diffraction=*/false);
-      return [q](vec3 l) { return q.eval(l)[1]; };
-    }
-    const SurfacePoint p = sample_surface(a_, u, v);
-    const Atlas* a = &a_;
-    return [a, p, wo](vec3 l) {
-      return eval_bsdf(*a, p, l, wo, Evaluator::Model)[1] * std::fabs(l.z);
-    };
-  }
-
- private:
-  const Atlas& a_;
-  bool raywave_;
-  std::unique_ptr<RaywaveData> data_;
-};
 
 /// A jittered lattice point of the repeat: cell (i, j) of side x side, offset by a fixed hash.
 float jitter(unsigned i, unsigned j, unsigned c) {
@@ -85,7 +54,7 @@ PresetError preset_error(const Atlas& a, const Atlas& reference, int points, int
       reference.manifest.value("repeat", nlohmann::json()))
     throw std::runtime_error("the atlas and the reference have different weave repeats: not the "
                              "same fabric");
-  const Bsdf fa(a), fr(reference);
+  const AtlasBsdf fa(a, Evaluator::Model), fr(reference, Evaluator::Model);
   const PresetErrorSampling sampling = preset_error_sampling(points, views, sphere_n);
   const auto& uv = sampling.uv;
   const auto& V = sampling.views;
@@ -106,7 +75,7 @@ PresetError preset_error(const Atlas& a, const Atlas& reference, int points, int
       const auto gr = fr.at(uv[p].first, uv[p].second, V[k]);
       double num = 0, den = 0;
       for (size_t l = 0; l < nl; ++l) {
-        const double x = ga(L[l]), y = gr(L[l]);
+        const double x = ga(L[l])[1], y = gr(L[l])[1];
         mean_a[l] += x, mean_r[l] += y;
         num += std::fabs(x - y), den += y;
       }

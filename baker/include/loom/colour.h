@@ -7,6 +7,8 @@
 
 namespace loom {
 
+struct FabricSpec;
+
 /// Converts sRGB-encoded colours to scene linear. With a config path (e.g. Blender's
 /// `datafiles/colormanagement/config.ocio`), the source is its "sRGB" colour space (or
 /// "sRGB - Texture") and the destination its `scene_linear` role. Without one, Loom builds an
@@ -28,5 +30,10 @@ class ColourConverter {
   struct Impl;
   std::shared_ptr<Impl> impl_;
 };
+
+/// Each yarn's colour_linear from its input colour: converted from sRGB by cc, or taken as given
+/// when the spec says it is linear. The baker does this first; so must anything else that
+/// reads colour_linear from a spec it loaded (eval truth).
+void resolve_yarn_colours(FabricSpec& spec, const ColourConverter& cc);
 
 }  // namespace loom

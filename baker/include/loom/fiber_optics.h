@@ -4,6 +4,7 @@
 // unpolarised light, the exit from inside a locally straight fiber, and the counter-based random
 // numbers that make a traced ray a pure function of its indices.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 

@@ -19,7 +19,8 @@
 //    with Fresnel's probability (Russian roulette), so every ray ends with its weight in one
 //    outcome and a white yarn conserves energy exactly, up to `truncated`.
 //  * reflect: the light that leaves on wi's side of the cloth; transmit: the other side,
-//    including `direct`, the light that passes through the gaps without meeting a fiber.
+//    including `direct`, the light that passes through the gaps without meeting a fiber (a
+//    delta towards -wi, which the tally leaves out: it is no density).
 //  * The tally is the fraction of the incident power per steradian towards each outgoing
 //    direction wo: f(wi, wo) |cos theta_o|, which by reciprocity is also what Cycles' closure
 //    eval returns for a view wi and a light wo. Bins: res x res over the sphere, rows uniform in
@@ -58,7 +59,7 @@ struct TruthResult {
   double direct = 0;     ///< transmitted without meeting a fiber (part of transmit)
   double truncated = 0;  ///< still inside after max_events interactions
   int res = 0;
-  std::vector<float> density;  ///< res x res x RGB, row-major from row 0 (header comment)
+  std::vector<float> density;  ///< res x res x RGB, row-major from row 0; scattered light only
   uint64_t rays = 0;
   size_t curves = 0, segments = 0;
   std::array<double, 4> tile_um{};  ///< x0, y0, x1, y1
@@ -78,7 +79,7 @@ class FiberTruthScene {
 
   /// Light from unit direction wi (wi.z != 0), traced with s's rays, bins and seed.
   TruthResult trace(const Vec3d& wi, const TruthSettings& s) const;
-  size_t segments() const;
+  size_t curves() const;
 
  private:
   struct Impl;
@@ -89,11 +90,15 @@ class FiberTruthScene {
 std::array<double, 4> truth_tile(const FabricSpec& spec, int min_yarns);
 
 /// Per yarn (warp, weft) the fibers' material: the yarn's IOR and the absorption its colour
-/// stands for, as the ray-wave tier derives it (absorption.h: the colour through the ply's
+/// (color_linear: resolve_yarn_colours first) stands for, as the ray-wave tier derives it (absorption.h: the colour through the ply's
 /// simulated sigma -> energy curve at the spec's quality, per RGB channel).
 std::array<FiberMaterial, 2> truth_materials(const FabricSpec& spec);
 
-/// The whole computation for a spec: realize the tile's fibers, build the scene, trace.
+/// The scene of a spec's tile: realize the tile's fibers (warp and weft materials from
+/// truth_materials), build the Embree scene; trace it for as many wi as needed.
+std::unique_ptr<FiberTruthScene> make_truth_scene(const FabricSpec& spec, int min_yarns);
+
+/// The whole computation for a spec: make_truth_scene, then trace.
 TruthResult fiber_truth(const FabricSpec& spec, const Vec3d& wi, const TruthSettings& s);
 
 }  // namespace loom

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -17,6 +18,8 @@
 #include "loom/preset_error.h"
 #include "loom/raywave_bsdf.h"
 #include "loom/shading.h"
+#include "loom/spec.h"
+#include "loom/truth_error.h"
 
 using nlohmann::json;
 
@@ -210,27 +213,113 @@ void add_eval_albedo(CLI::App& eval, Commands& out) {
   }});
 }
 
+namespace {
+
+struct ErrorArgs {
+  std::string atlas, reference;
+  bool truth = false;
+  int points = 64, views = 12, sphere = 48;
+  loom::TruthErrorSettings t;
+};
+
+json comparison(const loom::TruthComparison& c) {
+  return {{"relative_l1", c.relative_l1},
+          {"albedo_error", c.albedo_error},
+          {"reflect_ratio", c.reflect_ratio},
+          {"transmit_ratio", c.transmit_ratio}};
+}
+
+int eval_error_truth(const ErrorArgs& a, const loom::Atlas& at) {
+  // The fabric is the one the atlas was baked from: its canonical spec, in the manifest.
+  const auto spec = loom::parse_spec(at.manifest.value("spec", json::object()));
+  if (!spec.ok()) {
+    std::cerr << "error: --atlas: " << a.atlas << ": the manifest's spec does not load:\n";
+    for (const auto& e : spec.errors) std::cerr << "  " << e << "\n";
+    return 2;
+  }
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const loom::TruthError e = loom::truth_error(at, spec.spec, a.t);
+  json views = json::array();
+  for (const auto& v : e.views) {
+    auto side = [](const loom::TruthView::Side& s) {
+      return json{{"relative_l1", s.relative_l1}, {"reflect", s.reflect}, {"transmit", s.transmit}};
+    };
+    views.push_back({{"view", {v.view.x, v.view.y, v.view.z}},
+                     {"truth", {{"reflect", v.truth_reflect},
+                                {"transmit", v.truth_transmit},
+                                {"direct", v.truth_direct},
+                                {"noise_l1", v.noise_l1}}},
+                     {"open", v.open},
+                     {"model", side(v.model)},
+                     {"closures", side(v.closures)}});
+  }
+  std::cout << json{{"model", comparison(e.model)},
+                    {"closures", comparison(e.closures)},
+                    {"noise_l1", e.noise_l1},
+                    {"views", views},
+                    {"rays_per_view", a.t.truth.rays},
+                    {"res", a.t.truth.res},
+                    {"points", a.t.points},
+                    {"tier", at.manifest.value("tier", "")},
+                    {"quality", at.manifest.value("quality", "")},
+                    {"seconds", std::chrono::duration<double>(clock::now() - t0).count()}}
+                   .dump()
+            << std::endl;
+  return 0;
+}
+
+}  // namespace
+
 void add_eval_error(CLI::App& eval, Commands& out) {
-  struct Args {
-    std::string atlas, reference;
-    int points = 64, views = 12, sphere = 48;
-  };
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<ErrorArgs>();
   auto* c = eval.add_subcommand(
       "error", "error of an atlas's BSDF against the same fabric at another preset (e.g. "
-               "reference), by the C++ model: relative L1 over the sphere (preset_error.h)");
+               "reference), by the C++ model: relative L1 over the sphere (preset_error.h); "
+               "with --truth, of its model and closures against the fibers (truth_error.h)");
   c->add_option("--atlas", a->atlas, "atlas to measure")->required();
-  c->add_option("--reference", a->reference, "atlas of the same fabric and tier to compare with")
-      ->required();
-  c->add_option("--points", a->points,
-                "points of the weave repeat (an n x n lattice, n = round(sqrt(points)))")
-      ->check(CLI::Range(1, 4096));
-  c->add_option("--views", a->views, "view directions over the sphere")
-      ->check(CLI::Range(1, 1024));
-  c->add_option("--sphere", a->sphere, "light directions: N x 2N over the sphere")
+  auto* ref = c->add_option("--reference", a->reference,
+                            "atlas of the same fabric and tier to compare with");
+  auto* tru = c->add_flag("--truth", a->truth,
+                          "compare with light traced through the fibers of the fabric the "
+                          "atlas was baked from (eval truth), model and closures");
+  ref->excludes(tru);
+  auto* pts = c->add_option("--points", a->points,
+                            "points of the weave repeat (an n x n lattice, n = "
+                            "round(sqrt(points))); default 64, 256 with --truth")
+                  ->check(CLI::Range(1, 4096));
+  auto* vws = c->add_option("--views", a->views,
+                            "view directions over the sphere; default 12, 6 with --truth")
+                  ->check(CLI::Range(1, 1024));
+  c->add_option("--sphere", a->sphere, "light directions: N x 2N over the sphere (not --truth)")
       ->check(CLI::Range(2, 512));
-  out.push_back({c, [a] {
-    const auto at = loom::load_atlas(a->atlas), r = loom::load_atlas(a->reference);
+  a->t.truth.res = 24;
+  c->add_option("--rays", a->t.truth.rays, "--truth: rays per view (default 200000)")
+      ->check(CLI::Range(uint64_t(2), uint64_t(1) << 40));
+  c->add_option("--res", a->t.truth.res,
+                "--truth: bins per side over the sphere, even (default 24)")
+      ->check(CLI::Range(2, 512) & CLI::Validator(
+                                       [](std::string& v) {
+                                         return std::stoi(v) % 2 ? std::string("must be even")
+                                                                 : std::string();
+                                       },
+                                       "EVEN"));
+  c->add_option("--seed", a->t.truth.seed, "--truth: seed of the rays");
+  c->add_option("--min-yarns", a->t.truth.min_yarns,
+                "--truth: yarns across the traced tile in each direction, at least")
+      ->check(CLI::Range(1, 256));
+  out.push_back({c, [a, pts, vws] {
+    if (a->reference.empty() && !a->truth) {
+      std::cerr << "error: --reference or --truth: give one (what to compare the atlas with)\n";
+      return 2;
+    }
+    const auto at = loom::load_atlas(a->atlas);
+    if (a->truth) {
+      a->t.points = pts->count() ? a->points : 256;
+      a->t.views = vws->count() ? a->views : 6;
+      return eval_error_truth(*a, at);
+    }
+    const auto r = loom::load_atlas(a->reference);
     const auto e = loom::preset_error(at, r, a->points, a->views, a->sphere);
     std::cout << json{{"average_relative_l1", e.average},
                       {"pointwise_mean_relative_l1", e.pointwise_mean},

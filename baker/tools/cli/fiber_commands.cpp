@@ -13,6 +13,7 @@
 
 #include "command.h"
 #include "loom/cli_values.h"
+#include "loom/colour.h"
 #include "loom/fiber_lookup.h"
 #include "loom/fiber_region.h"
 #include "loom/fiber_truth.h"
@@ -191,7 +192,8 @@ bool write_truth_image(const loom::TruthResult& r, const loom::Vec3d& wi, const 
   if (!out) return false;
   OIIO::ImageSpec spec(r.res, r.res, 3, OIIO::TypeDesc::FLOAT);
   spec.attribute("loom:layout", "f(wi, wo) |cos theta_o| per sr; rows: cos theta_o from -1 "
-                                "(first scanline) to 1; columns: phi_o = atan2(y, x) from -pi");
+                                "(first scanline) to 1; columns: phi_o = atan2(y, x) from -pi; "
+                                "the light through the gaps (a delta at -wi) is not in it");
   spec.attribute("loom:wi", fmt::format("{},{},{}", wi.x, wi.y, wi.z));
   if (!out->open(tmp.string(), spec) ||
       !out->write_image(OIIO::TypeDesc::FLOAT, r.density.data()) || !out->close()) {
@@ -207,6 +209,7 @@ bool write_truth_image(const loom::TruthResult& r, const loom::Vec3d& wi, const 
 int eval_truth(const EvalTruthArgs& a) {
   auto res = loom::load_spec(a.spec);
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
+  loom::resolve_yarn_colours(res.spec, loom::ColourConverter(""));  // as bake does by default
   const auto w = loom::parse_cli_direction("--wi", a.wi);
   const loom::Vec3d wi{w[0], w[1], w[2]};
   if (!(std::fabs(wi.z) >= 1e-3)) {
