@@ -39,6 +39,8 @@ import sys
 import tempfile
 import time
 
+from trade_plots import plot_pareto
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 WEAVES = ("plain", "twill", "satin", "basket")
@@ -67,6 +69,9 @@ def parse(argv):
     p.add_argument("--repeats", type=int, default=3, help="renders per material (median)")
     p.add_argument("--light", choices=("front", "back"), default="front")
     p.add_argument("--no-render", action="store_true", help="skip Blender (no render columns)")
+    p.add_argument("--truth-rays", type=int, default=200000,
+                   help="rays per view of the fiber-level truth (eval error --truth) each preset "
+                        "is measured against; 0: no truth columns")
     # A single-ply fabric: its tables are the simulated ply's (a multi-ply yarn's are Eq. S.13's).
     p.add_argument("--lobes", default="orange_polyester_satin:final:30:0.3:0",
                    help="FABRIC:QUALITY:THETA_I_DEG:H:SIGMA of the lobe plot (with the "
@@ -218,7 +223,8 @@ def settings_key(args):
             "timing_samples": None if args.no_render else args.timing_samples,
             "res": args.res,
             "repeats": args.repeats, "light": args.light, "rendered": not args.no_render,
-            "qualities": args.qualities, "loom_bake_sha256": h.hexdigest()}
+            "qualities": args.qualities, "truth_rays": args.truth_rays,
+            "loom_bake_sha256": h.hexdigest()}
 
 
 def load_done(args, key):
@@ -349,6 +355,16 @@ def measure(args):
                 m = run_json([args.bake, "eval", "mapping", "--atlas", atlas])
                 row["mapping_l1"], row["mapping_energy"] = (m["mean_relative_l1"],
                                                             m["mean_energy_error"])
+                if args.truth_rays:
+                    t = run_json([args.bake, "eval", "error", "--atlas", atlas, "--truth",
+                                  "--rays", str(args.truth_rays)])
+                    row.update(error_vs_truth_model=t["model"]["relative_l1"],
+                               error_vs_truth_closures=t["closures"]["relative_l1"],
+                               albedo_vs_truth_model=t["model"]["albedo_error"],
+                               albedo_vs_truth_closures=t["closures"]["albedo_error"],
+                               reflect_ratio_vs_truth=t["closures"]["reflect_ratio"],
+                               transmit_ratio_vs_truth=t["closures"]["transmit_ratio"],
+                               truth_noise_l1=t["noise_l1"])
                 atlases[q] = atlas
                 rows.append(row)
                 log(f"{fabric} {tier} {q}: bake {row['bake_s']:.2f} s, "
@@ -389,7 +405,10 @@ def measure(args):
 COLUMNS = ("fabric", "tier", "quality", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
            "render_whole_ratio", "bsdf_l1", "bsdf_pointwise_l1", "bsdf_energy", "image_rmse",
            "image_noise_floor", "mapping_l1", "mapping_energy", "render_ms_per_sample",
-           "render_fixed_s", "render_s", "principled_ms_per_sample", "principled_s")
+           "render_fixed_s", "render_s", "principled_ms_per_sample", "principled_s",
+           "error_vs_truth_model", "error_vs_truth_closures", "albedo_vs_truth_model",
+           "albedo_vs_truth_closures", "reflect_ratio_vs_truth", "transmit_ratio_vs_truth",
+           "truth_noise_l1")
 
 
 def fmt(v):
@@ -416,15 +435,6 @@ def summary(rows, args):
     return out
 
 
-def pareto(points):
-    """Indices of the points that no other point beats on both (x, y), lower is better."""
-    keep = []
-    for i, (x, y) in enumerate(points):
-        if not any((x2 <= x and y2 <= y) and (x2 < x or y2 < y) for x2, y2 in points):
-            keep.append(i)
-    return keep
-
-
 def write_outputs(rows, args):
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "trade.csv"), "w", newline="", encoding="utf-8") as f:
@@ -442,11 +452,15 @@ def write_outputs(rows, args):
     with open(os.path.join(args.out, "trade.json"), "w", encoding="utf-8") as f:
         json.dump({"settings": meta, "rows": rows, "summary": summ}, f, indent=1)
     cols = ("tier", "quality", "fabrics", "bake_s", "peak_rss_mib", "atlas_mib", "render_ratio",
-            "render_whole_ratio", "bsdf_l1", "image_rmse", "image_noise_floor", "mapping_l1")
+            "render_whole_ratio", "bsdf_l1", "image_rmse", "image_noise_floor", "mapping_l1",
+            "error_vs_truth_model", "error_vs_truth_closures", "albedo_vs_truth_closures",
+            "reflect_ratio_vs_truth", "transmit_ratio_vs_truth", "truth_noise_l1")
     heads = ("tier", "preset", "fabrics", "bake s", "peak RSS MiB", "atlas MiB",
              "render per sample / Principled", "whole render / Principled",
              "BSDF rel. L1 vs ref.", "image rel. RMSE vs ref.",
-             "reference, other seed", "mapping rel. L1")
+             "reference, other seed", "mapping rel. L1", "model rel. L1 vs fibers",
+             "closures rel. L1 vs fibers", "closures albedo error vs fibers",
+             "reflect / fibers", "transmit / fibers", "fibers' own MC L1")
     sources = getattr(args, "sources", None)
     when = (f"joined {meta['date']} from earlier runs" if sources
             else f"{meta['date']}, {meta['cores']} cores")
@@ -461,7 +475,11 @@ def write_outputs(rows, args):
           "`reference` preset of the same tier: BSDF relative L1 over the sphere (repeat "
           "average, C++ model), image relative RMSE (every material rendered with one seed; "
           "'reference, other seed' is the reference rendered with another: Monte Carlo noise "
-          "alone). Mapping: model vs Cycles closures.", ""]
+          "alone). Mapping: model vs Cycles closures. Against the fibers (`eval error "
+          f"--truth`, {args.truth_rays} rays per view, 6 views): relative L1 over the sphere of "
+          "the repeat-averaged BSDF, directional albedo error, reflect and transmit ratios "
+          "(closures / fibers, geometric mean over views), and the truth's own Monte Carlo "
+          "part of the L1.", ""]
     if sources:
         md += ["Joined from earlier runs (`--merge`), each with its own loom-bake:", ""]
         md += [f"- `{s['dir']}` ({s.get('date') or 'date not recorded'}, "
@@ -489,67 +507,6 @@ def write_outputs(rows, args):
     with open(os.path.join(args.out, "trade.md"), "w", encoding="utf-8") as f:
         f.write("\n".join(md) + "\n")
     plot_pareto(rows, summ, args)
-
-
-def plot_pareto(rows, summ, args):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    xkey = "render_ratio" if not args.no_render else "bake_s"
-    xlabel = ("render time per sample / Principled BSDF with sheen (same scene, one run)"
-              if not args.no_render else "bake time, s (median)")
-    panels = [("bsdf_l1", "BSDF relative L1 vs reference")]
-    if not args.no_render:
-        panels.append(("image_rmse", "image relative RMSE vs reference"))
-    # One panel per error and tier: each tier's errors are against its own reference, and the
-    # tiers' scales differ tenfold (surface presets within a few hundredths), so a shared axis
-    # would stack one tier's presets on top of each other.
-    tiers = [t for t in args.tiers if any(r["tier"] == t for r in rows)] or list(args.tiers)
-    fig, axes = plt.subplots(len(panels), len(tiers), figsize=(6.5 * len(tiers), 4.6 * len(panels)),
-                             squeeze=False)
-    colours = {"surface": "tab:blue", "raywave": "tab:red"}
-    markers = {"draft": "o", "preview": "s", "final": "^", "reference": "*"}
-    for p, (ykey, ylabel) in enumerate(panels):
-        for col, tier in enumerate(tiers):
-            ax = axes[p][col]
-            for r in rows:
-                if r["tier"] == tier and r.get(xkey) is not None and r.get(ykey) is not None:
-                    ax.scatter(r[xkey], r[ykey], color=colours[tier], alpha=0.2,
-                               marker=markers[r["quality"]], s=18)
-            sel = [s for s in summ if s["tier"] == tier and s.get(xkey) is not None
-                   and s.get(ykey) is not None]
-            ax.plot([s[xkey] for s in sel], [s[ykey] for s in sel], color=colours[tier],
-                    label=f"{tier}: median over fabrics")
-            for s in sel:
-                ax.scatter(s[xkey], s[ykey], color=colours[tier], marker=markers[s["quality"]],
-                           s=60, zorder=3)
-                ax.annotate(s["quality"], (s[xkey], s[ykey]), textcoords="offset points",
-                            xytext=(5, 4), fontsize=8)
-            # The front among the presets below the reference (whose error is 0 by definition).
-            cand = [s for s in sel if s["quality"] != "reference"]
-            for i in pareto([(s[xkey], s[ykey]) for s in cand]):
-                ax.scatter(cand[i][xkey], cand[i][ykey], s=220, facecolors="none",
-                           edgecolors="black", zorder=4)
-            if ykey == "image_rmse":
-                floors = [r["image_noise_floor"] for r in rows
-                          if r["tier"] == tier and r.get("image_noise_floor")]
-                if floors:
-                    ax.axhline(statistics.median(floors), color=colours[tier], ls="--", lw=1,
-                               label="reference vs itself, other seed (median)")
-            ax.set_title(f"{tier}: {ylabel}", fontsize=10)
-            ax.set_xlabel(xlabel)
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=8)
-    # Two lines when one tier's panels are all the figure's width holds.
-    sep = "\n" if len(tiers) == 1 else " "
-    fig.suptitle("Loom: error against cost per tier and preset (median over fabrics;" + sep +
-                 "errors against the tier's own reference; ringed: each tier's Pareto front)",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.out, "pareto.png"), dpi=110)
-    plt.close(fig)
 
 
 def plot_lobes(args):

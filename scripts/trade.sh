@@ -4,11 +4,12 @@
 # runs), atlas size, render time (per sample, and whole) as a ratio to a Principled BSDF with
 # sheen (one Blender run per fabric and tier, node mode), error against the reference preset
 # (BSDF relative L1 by the C++ model; image relative RMSE, beside the reference rendered with
-# another seed) and the closure-mapping error.
+# another seed), the closure-mapping error, and the error of the model and of the closures against
+# the fiber-level truth (eval error --truth: every tier against the same fibers).
 #   bash scripts/trade.sh [--fabrics A,B] [--tiers surface,raywave] [--raywave-fabrics A,B]
 #                         [--qualities draft,final] [--runs 3] [--samples 16] [--res 96]
 #                         [--timing-samples 64]
-#                         [--repeats 3] [--light front|back] [--no-render]
+#                         [--repeats 3] [--light front|back] [--no-render] [--truth-rays 200000]
 #                         [--lobes FABRIC:QUALITY:THETA_I:H:SIGMA|none] [--out DIR] [--resume]
 #   bash scripts/trade.sh --merge DIR1,DIR2 --out DIR  (join earlier runs: one table, one plot)
 # Writes DIR (default out/trade): trade.csv, trade.json, trade.md (the summary), pareto.png
@@ -19,7 +20,7 @@
 # loom-bake binary) measures only the rest, so a long run can be split over several sittings.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-case ${1:-} in -h|--help) sed -n '2,19p' "$0"; exit 0 ;; esac
+case ${1:-} in -h|--help) sed -n '2,20p' "$0"; exit 0 ;; esac
 case " $* " in
   *" --merge"*) ;;  # joins earlier runs: measures nothing, needs no build
   *)
