@@ -88,6 +88,7 @@ json manifest_of(const BakeContext& ctx, const std::string& bake_key, const json
 std::string raywave_simulation_key(json canon, const std::string& colour,
                                    const std::string& baker_id) {
   canon.erase("name");
+  if (canon.contains("model") && canon["model"].is_object()) canon["model"].erase("colour_reading");
   for (const char* y : {"warp", "weft"})
     if (canon.contains(y) && canon[y].is_object()) canon[y].erase("color");
   return sha256_string(canon.dump() + colour + baker_id);

@@ -93,17 +93,54 @@ struct FiberTruthScene::Impl {
     o.y = std::clamp(o.y, tile[1], std::nextafter(tile[3], tile[1]));
   }
 
-  void trace_ray(const Vec3d& wi, const TruthSettings& s, RayRng& rng, Tally& out) const;
+  TruthPath trace_ray(const Vec3d& wi, const TruthSettings& s, RayRng& rng) const;
 };
 
-void FiberTruthScene::Impl::trace_ray(const Vec3d& wi, const TruthSettings& s, RayRng& rng,
-                                      Tally& out) const {
+namespace {
+
+/// A path's weight per channel for the materials' absorption: exp(-sum_m sigma_m len_m).
+std::array<double, 3> path_weight(const TruthPath& p, const std::vector<FiberMaterial>& m) {
+  std::array<double, 3> w{};
+  for (size_t c = 0; c < 3; ++c) {
+    double tau = 0;
+    for (size_t k = 0; k < m.size(); ++k) tau += m[k].sigma_per_um[c] * double(p.len_um[k]);
+    w[c] = std::exp(-tau);
+  }
+  return w;
+}
+
+/// Adds one path to a tally, with the materials' absorption.
+void tally_path(const TruthPath& p, const std::vector<FiberMaterial>& m, bool wi_up, Tally& out) {
+  const std::array<double, 3> w = path_weight(p, m);
+  for (size_t c = 0; c < 3; ++c) {
+    out.abs[c] += 1 - w[c];
+    out.abs2[c] += (1 - w[c]) * (1 - w[c]);
+  }
+  if (p.exit == TruthPath::Truncated) {
+    out.truncated += (w[0] + w[1] + w[2]) / 3;
+    return;
+  }
+  const bool same_side = (p.exit == TruthPath::Up) == wi_up;
+  auto& sum = same_side ? out.refl : out.trans;
+  auto& sum2 = same_side ? out.refl2 : out.trans2;
+  for (size_t c = 0; c < 3; ++c) sum[c] += w[c], sum2[c] += w[c] * w[c];
+  if (!p.touched) {  // the delta at -wi: counted apart, not in the density (header comment)
+    out.direct += 1;
+    return;
+  }
+  for (size_t c = 0; c < 3; ++c) out.bins[size_t(p.bin) * 3 + c] += w[c];
+}
+
+}  // namespace
+
+TruthPath FiberTruthScene::Impl::trace_ray(const Vec3d& wi, const TruthSettings& s,
+                                           RayRng& rng) const {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const double x = tile[0] + rng.next() * (tile[2] - tile[0]);
   const double y = tile[1] + rng.next() * (tile[3] - tile[1]);
   Vec3d o{x, y, wi.z > 0 ? z_hi : z_lo};
   Vec3d d = wi * -1.0;
-  std::array<double, 3> w{1, 1, 1};
+  TruthPath path;
   int events = 0;
   bool touched = false, truncated = false;
   // A ray crossing the tile sideways many times (near grazing) is bounded like one that bounces.
@@ -127,7 +164,7 @@ void FiberTruthScene::Impl::trace_ray(const Vec3d& wi, const TruthSettings& s, R
       continue;
     }
     const Segment& sg = seg[size_t(hit)];
-    const FiberMaterial& m = materials[sg.material];
+    const double ior = materials[sg.material].ior;
     Vec3d q = o + d * t;
     const Vec3d n = normal_at(sg, q);
     const double cos_i = -dot(d, n);
@@ -138,60 +175,46 @@ void FiberTruthScene::Impl::trace_ray(const Vec3d& wi, const TruthSettings& s, R
     touched = true;
     ++events;
     double cos_t = 0;
-    const double F = fresnel_dielectric(cos_i, m.ior, cos_t);
+    const double F = fresnel_dielectric(cos_i, ior, cos_t);
     if (rng.next() < F) {
       d = reflected(d, n);
       o = q;
       continue;
     }
-    d = refracted(d, n, cos_i, cos_t, m.ior);
+    d = refracted(d, n, cos_i, cos_t, ior);
     // Inside the fiber: the wall of the segment's cylinder until the ray refracts out.
     for (;;) {
       double te = 0;
       Vec3d ne = n;
       if (!cylinder_exit(sg.p0, sg.axis, sg.r, q, d, te, ne)) te = 0;  // tangent: leave here
-      for (int c = 0; c < 3; ++c) w[size_t(c)] *= std::exp(-m.sigma_per_um[size_t(c)] * te);
+      path.len_um[sg.material] += float(te);
       q = q + d * te;
       const double ci = dot(d, ne);  // > 0: meeting the wall from inside
       if (!(ci > 0)) break;
       double cto = 0;
-      const double Fi = fresnel_dielectric(ci, 1 / m.ior, cto);
+      const double Fi = fresnel_dielectric(ci, 1 / ior, cto);
       if (++events >= s.max_events) break;
       if (rng.next() < Fi) {
         d = reflected(d, ne);
         continue;
       }
-      d = refracted(d, ne * -1.0, ci, cto, 1 / m.ior);
+      d = refracted(d, ne * -1.0, ci, cto, 1 / ior);
       break;
     }
     o = q;
   }
-  std::array<double, 3> a{};
-  for (int c = 0; c < 3; ++c) a[size_t(c)] = 1 - w[size_t(c)];
-  for (int c = 0; c < 3; ++c) {
-    out.abs[size_t(c)] += a[size_t(c)];
-    out.abs2[size_t(c)] += a[size_t(c)] * a[size_t(c)];
-  }
+  path.touched = touched;
   if (truncated) {
-    out.truncated += (w[0] + w[1] + w[2]) / 3;
-    return;
+    path.exit = TruthPath::Truncated;
+    return path;
   }
-  const bool same_side = (d.z > 0) == (wi.z > 0);
-  auto& sum = same_side ? out.refl : out.trans;
-  auto& sum2 = same_side ? out.refl2 : out.trans2;
-  for (int c = 0; c < 3; ++c) {
-    sum[size_t(c)] += w[size_t(c)];
-    sum2[size_t(c)] += w[size_t(c)] * w[size_t(c)];
-  }
-  if (!touched) {  // the delta at -wi: counted apart, not in the density (header comment)
-    out.direct += 1;
-    return;
-  }
+  path.exit = d.z > 0 ? TruthPath::Up : TruthPath::Down;
   const int res = s.res;
   const int row = std::clamp(int(std::floor((d.z + 1) * 0.5 * res)), 0, res - 1);
   const int col = std::clamp(int(std::floor((std::atan2(d.y, d.x) + M_PI) / (2 * M_PI) * res)), 0,
                              res - 1);
-  for (int c = 0; c < 3; ++c) out.bins[(size_t(row) * size_t(res) + size_t(col)) * 3 + size_t(c)] += w[size_t(c)];
+  path.bin = row * res + col;
+  return path;
 }
 
 FiberTruthScene::FiberTruthScene(const FiberCurves& curves, const std::vector<uint8_t>& material,
@@ -205,6 +228,8 @@ FiberTruthScene::FiberTruthScene(const FiberCurves& curves, const std::vector<ui
     throw std::invalid_argument("tile: x0 < x1 and y0 < y1 are needed");
   if (material.size() != curves.curves())
     throw std::invalid_argument("material: one entry per curve is needed");
+  if (I.materials.empty() || I.materials.size() > kTruthMaterials)
+    throw std::invalid_argument("materials: one or two (warp and weft) are traced");
   I.device = rtcNewDevice(nullptr);
   if (!I.device) throw std::runtime_error("Embree: cannot create a device");
   rtcSetDeviceErrorFunction(I.device, embree_error, &I.error);
@@ -262,33 +287,64 @@ FiberTruthScene::~FiberTruthScene() = default;
 
 size_t FiberTruthScene::curves() const { return impl_->curves; }
 
-TruthResult FiberTruthScene::trace(const Vec3d& wi_in, const TruthSettings& s) const {
-  const Impl& I = *impl_;
+TruthPaths FiberTruthScene::paths(const Vec3d& wi_in, const TruthSettings& s) const {
   const Vec3d wi = normalized(wi_in);
   if (!(std::fabs(wi.z) >= 1e-3))
     throw std::invalid_argument("wi: the light must not be parallel to the cloth (|z| >= 1e-3)");
+  return paths_of(wi, false, s);
+}
+
+TruthPaths FiberTruthScene::diffuse_paths(bool from_above, const TruthSettings& s) const {
+  return paths_of({0, 0, from_above ? 1.0 : -1.0}, true, s);
+}
+
+TruthPaths FiberTruthScene::paths_of(const Vec3d& wi, bool diffuse, const TruthSettings& s) const {
+  const Impl& I = *impl_;
   if (s.res < 1 || s.rays < 1) throw std::invalid_argument("rays and res must be >= 1");
-  // Blocks of rays, each with its own tally, summed in block order: the result does not depend
+  TruthPaths out;
+  out.wi = wi;
+  out.diffuse = diffuse;
+  out.res = s.res;
+  out.paths.resize(s.rays);
+  tbb::parallel_for(uint64_t(0), s.rays, [&](uint64_t r) {
+    RayRng rng(s.seed, 7, r);
+    Vec3d w = wi;
+    if (diffuse) {  // cosine-weighted over wi's hemisphere (Malley), |z| kept off the plane
+      const double u = rng.next(), phi = 2 * M_PI * rng.next();
+      const double z = std::max(std::sqrt(1 - u), 1e-3), rr = std::sqrt(1 - z * z);
+      w = {rr * std::cos(phi), rr * std::sin(phi), wi.z > 0 ? z : -z};
+    }
+    out.paths[r] = I.trace_ray(w, s, rng);
+  });
+  return out;
+}
+
+TruthResult FiberTruthScene::tally(const TruthPaths& p,
+                                   const std::vector<FiberMaterial>& materials) const {
+  const Impl& I = *impl_;
+  if (materials.size() != I.materials.size())
+    throw std::invalid_argument("tally: one material per material of the scene is needed");
+  const uint64_t rays = p.paths.size();
+  if (rays < 1) throw std::invalid_argument("tally: no paths");
+  const int res = p.res;
+  // Blocks of paths, each with its own tally, summed in block order: the result does not depend
   // on the thread count.
-  const uint64_t blocks = std::min<uint64_t>(64, s.rays);
+  const uint64_t blocks = std::min<uint64_t>(64, rays);
   std::vector<Tally> tallies(blocks);
   tbb::parallel_for(uint64_t(0), blocks, [&](uint64_t b) {
     Tally& t = tallies[b];
-    t.bins.assign(size_t(s.res) * size_t(s.res) * 3, 0.0);
-    const uint64_t r0 = s.rays * b / blocks, r1 = s.rays * (b + 1) / blocks;
-    for (uint64_t r = r0; r < r1; ++r) {
-      RayRng rng(s.seed, 7, r);
-      I.trace_ray(wi, s, rng, t);
-    }
+    t.bins.assign(size_t(res) * size_t(res) * 3, 0.0);
+    const uint64_t r0 = rays * b / blocks, r1 = rays * (b + 1) / blocks;
+    for (uint64_t r = r0; r < r1; ++r) tally_path(p.paths[r], materials, p.wi.z > 0, t);
   });
   TruthResult out;
-  out.res = s.res;
-  out.rays = s.rays;
+  out.res = res;
+  out.rays = rays;
   out.segments = I.seg.size();
   out.curves = I.curves;
   out.tile_um = I.tile;
   out.z_lo_um = I.z_lo, out.z_hi_um = I.z_hi;
-  std::vector<double> bins(size_t(s.res) * size_t(s.res) * 3, 0.0);
+  std::vector<double> bins(size_t(res) * size_t(res) * 3, 0.0);
   Tally sum;
   for (const Tally& t : tallies) {
     for (size_t k = 0; k < bins.size(); ++k) bins[k] += t.bins[k];
@@ -298,7 +354,7 @@ TruthResult FiberTruthScene::trace(const Vec3d& wi_in, const TruthSettings& s) c
     }
     sum.direct += t.direct, sum.truncated += t.truncated;
   }
-  const double N = double(s.rays);
+  const double N = double(rays);
   auto se = [N](double s1, double s2) {
     const double m = s1 / N;
     return std::sqrt(std::max(s2 / N - m * m, 0.0) / N);
@@ -310,11 +366,17 @@ TruthResult FiberTruthScene::trace(const Vec3d& wi_in, const TruthSettings& s) c
   }
   out.direct = sum.direct / N;
   out.truncated = sum.truncated / N;
-  const double per_sr = 1.0 / (N * 4 * M_PI / (double(s.res) * s.res));
+  const double per_sr = 1.0 / (N * 4 * M_PI / (double(res) * res));
   out.density.resize(bins.size());
   for (size_t k = 0; k < bins.size(); ++k) out.density[k] = float(bins[k] * per_sr);
   return out;
 }
+
+TruthResult FiberTruthScene::trace(const Vec3d& wi, const TruthSettings& s) const {
+  return tally(paths(wi, s), impl_->materials);
+}
+
+const std::vector<FiberMaterial>& FiberTruthScene::materials() const { return impl_->materials; }
 
 std::array<double, 4> truth_tile(const FabricSpec& spec, int min_yarns) {
   const Weave w = make_weave(spec.weave);

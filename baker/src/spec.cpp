@@ -14,6 +14,10 @@ namespace loom {
 
 using nlohmann::json;
 
+const char* to_string(ColourReading r) {
+  return r == ColourReading::Swatch ? "swatch" : "ply_albedo";
+}
+
 const char* to_string(Quality q) {
   switch (q) {
     case Quality::Draft: return "draft";
@@ -373,6 +377,13 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
                 : q == "final" ? Quality::Final
                 : q == "reference" ? Quality::Reference
                                    : Quality::Preview;
+    const auto reading = m.choice("colour_reading", "ply_albedo", {"swatch", "ply_albedo"});
+    s.colour_reading = reading == "swatch" ? ColourReading::Swatch : ColourReading::PlyAlbedo;
+    if (s.colour_reading == ColourReading::Swatch && s.tier != Tier::Raywave)
+      errors.push_back(fmt::format(
+          "$.model.colour_reading: \"swatch\" is not yet available on the {} tier (its "
+          "parameters are not yet solved for a swatch colour: issue 35); allowed there: "
+          "\"ply_albedo\"", tier));
     s.optical_thickness = m.number("optical_thickness", s.optical_thickness, 0.01, 100, "");
     s.diffuse_blend = m.number("diffuse_blend", s.diffuse_blend, 0, 1, "");
     s.double_layer_blend = m.number("double_layer_blend", s.double_layer_blend, 0, 1, "");
@@ -523,6 +534,7 @@ json canonical_spec(const FabricSpec& s) {
               {"model",
                {{"tier", to_string(s.tier)},
                 {"quality", to_string(s.quality)},
+                {"colour_reading", to_string(s.colour_reading)},
                 {"optical_thickness", s.optical_thickness},
                 {"diffuse_blend", s.diffuse_blend},
                 {"double_layer_blend", s.double_layer_blend}}},

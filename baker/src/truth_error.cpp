@@ -10,6 +10,7 @@
 #include "loom/atlas_bsdf.h"
 #include "loom/evaluator.h"
 #include "loom/preset_error.h"
+#include "loom/swatch.h"
 
 namespace loom {
 
@@ -105,6 +106,18 @@ TruthError truth_error(const Atlas& a, const FabricSpec& spec, const TruthErrorS
   fabric.warp.color_linear = colours.at("warp").get<std::array<double, 3>>();
   fabric.weft.color_linear = colours.at("weft").get<std::array<double, 3>>();
   const auto scene = make_truth_scene(fabric, s.truth.min_yarns);
+  // The fibers absorb what the atlas's colours stand for: a ray-wave atlas's own absorption
+  // (its colour reading applied at bake time), else the spec's reading (swatch.h).
+  std::vector<FiberMaterial> fibers = scene->materials();
+  if (a.manifest.value("tier", "") == "raywave") {
+    for (size_t k = 0; k < fibers.size() && k < 2; ++k) {
+      const auto mm = a.manifest.at("raywave").at("yarns").at(k == 0 ? "warp" : "weft")
+                          .at("absorption").at("sigma_rgb_per_mm").get<std::array<double, 3>>();
+      for (size_t c = 0; c < 3; ++c) fibers[k].sigma_per_um[c] = mm[c] * 1e-3;
+    }
+  } else {
+    fibers = reading_materials(*scene, fabric);
+  }
   const AtlasBsdf model(a, Evaluator::Model), closures(a, Evaluator::Closures);
   const PresetErrorSampling sp = preset_error_sampling(s.points, 1, 2);
   double open = 0;
@@ -122,9 +135,9 @@ TruthError truth_error(const Atlas& a, const FabricSpec& spec, const TruthErrorS
     TruthSettings half = s.truth;
     half.rays = s.truth.rays / 2;
     const Vec3d wi{V.x, V.y, V.z};
-    const TruthResult ta = scene->trace(wi, half);
+    const TruthResult ta = scene->tally(scene->paths(wi, half), fibers);
     half.seed = s.truth.seed + 0x9e3779b97f4a7c15ull;
-    const TruthResult tb = scene->trace(wi, half);
+    const TruthResult tb = scene->tally(scene->paths(wi, half), fibers);
     const TruthTally truth = combine_halves(ta, tb);
     tv.noise_l1 = truth.noise_l1;
     for (size_t c = 0; c < 3; ++c) {

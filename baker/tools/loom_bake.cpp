@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
                    cli::add_eval_asg, cli::add_eval_diffraction, cli::add_eval_plysim,
                    cli::add_eval_raywave, cli::add_eval_tables, cli::add_eval_error,
                    cli::add_eval_lobes, cli::add_eval_noise, cli::add_eval_colour,
-                   cli::add_eval_fibers, cli::add_eval_truth})
+                   cli::add_eval_fibers, cli::add_eval_truth, cli::add_eval_swatch})
     add(eval, commands);
 
   try {

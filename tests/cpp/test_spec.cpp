@@ -35,6 +35,25 @@ TEST(Spec, EmptyObjectTakesDefaults) {
   EXPECT_EQ(r.spec.quality, loom::Quality::Preview);
 }
 
+TEST(Spec, ColourReadingSwatchOnlyWhereItIsSolved) {
+  json d = base();
+  d["model"]["tier"] = "raywave";
+  auto r = parse_spec(d);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r.spec.colour_reading, loom::ColourReading::PlyAlbedo);  // the default, for now
+  EXPECT_EQ(loom::canonical_spec(r.spec)["model"]["colour_reading"], "ply_albedo");
+  d["model"]["colour_reading"] = "swatch";
+  r = parse_spec(d);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r.spec.colour_reading, loom::ColourReading::Swatch);
+  EXPECT_EQ(loom::canonical_spec(r.spec)["model"]["colour_reading"], "swatch");
+  d["model"]["tier"] = "surface";
+  // not yet on the surface tier: said so
+  expect_one_error(d, {"$.model.colour_reading", "not yet", "surface", "ply_albedo"});
+  d["model"]["colour_reading"] = "paint";
+  expect_one_error(d, {"$.model.colour_reading", "\"swatch\"", "\"ply_albedo\""});
+}
+
 TEST(Spec, WrongType) {
   json d = base();
   d["warp"] = {{"ior", "glass"}};

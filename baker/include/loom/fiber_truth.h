@@ -66,6 +66,29 @@ struct TruthResult {
   double z_lo_um = 0, z_hi_um = 0;
 };
 
+/// The materials a scene can have (warp and weft).
+inline constexpr size_t kTruthMaterials = 2;
+
+/// One traced path. The fibers' absorption does not change where a path goes (each interface
+/// picks reflection with Fresnel's probability, which does not depend on it), only its weight,
+/// exp(-sum_m sigma_m len_m) per channel: so one set of paths gives the truth for any absorption
+/// (FiberTruthScene::tally), which is what solving for a colour needs.
+struct TruthPath {
+  std::array<float, kTruthMaterials> len_um{0, 0};  ///< path inside fibers of each material
+  int32_t bin = -1;  ///< the tally bin it left into (row * res + col); -1 when truncated
+  enum Exit : uint8_t { Up, Down, Truncated } exit = Up;  ///< left above (z > 0), below, or not
+  bool touched = false;  ///< met a fiber (else it is the gaps' direct light)
+};
+
+/// The paths of one trace: from the light wi, or from diffuse light over wi's hemisphere
+/// (cosine-weighted; then `direct` and the bins mix directions).
+struct TruthPaths {
+  Vec3d wi;
+  bool diffuse = false;
+  int res = 0;
+  std::vector<TruthPath> paths;  ///< in ray order (16 bytes each)
+};
+
 /// Fibers placed for tracing: an Embree scene of round linear curves over a periodic tile.
 class FiberTruthScene {
  public:
@@ -77,11 +100,21 @@ class FiberTruthScene {
   FiberTruthScene(const FiberTruthScene&) = delete;
   FiberTruthScene& operator=(const FiberTruthScene&) = delete;
 
-  /// Light from unit direction wi (wi.z != 0), traced with s's rays, bins and seed.
+  /// Light from unit direction wi (wi.z != 0), traced with s's rays, bins and seed, with the
+  /// scene's materials: tally(paths(wi, s), materials()).
   TruthResult trace(const Vec3d& wi, const TruthSettings& s) const;
+  /// The paths alone (the materials' IOR used, not their absorption).
+  TruthPaths paths(const Vec3d& wi, const TruthSettings& s) const;
+  /// Diffuse light (uniform radiance) over the upper or the lower hemisphere.
+  TruthPaths diffuse_paths(bool from_above, const TruthSettings& s) const;
+  /// The result of paths for materials of other absorption (the same IORs: what the paths
+  /// were traced with), one per scene material.
+  TruthResult tally(const TruthPaths& p, const std::vector<FiberMaterial>& materials) const;
+  const std::vector<FiberMaterial>& materials() const;
   size_t curves() const;
 
  private:
+  TruthPaths paths_of(const Vec3d& wi, bool diffuse, const TruthSettings& s) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

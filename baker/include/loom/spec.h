@@ -19,6 +19,8 @@ enum class Quality { Draft, Preview, Final, Reference };
 enum class Tier { Surface, Raywave, Fiber };
 
 const char* to_string(Quality q);
+enum class ColourReading { Swatch, PlyAlbedo };
+const char* to_string(ColourReading r);
 const char* to_string(Tier t);
 
 /// One yarn system (warp or weft). Lengths in micrometres.
@@ -100,6 +102,12 @@ struct FabricSpec {
   double warp_per_cm = 28, weft_per_cm = 28;  ///< thread counts, [1, 400]
   Tier tier = Tier::Surface;
   Quality quality = Quality::Preview;
+  /// What a yarn colour means (swatch.h): the ply's single-scattering albedo (absorption.h; the
+  /// default, and all the surface and fiber tiers read yet), or the colour of a swatch of the
+  /// cloth folded to opacity (ray-wave tier: the fibers' absorption solved for it). The default
+  /// changes to the swatch once the surface tier is solved for it too (issue 35): until then
+  /// the two tiers would differ the more.
+  ColourReading colour_reading = ColourReading::PlyAlbedo;
   double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
   double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]
   /// s of the ray-wave supplement's Eq. S.22: the share of double-layer transmission that turns

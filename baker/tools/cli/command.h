@@ -45,6 +45,7 @@ void add_eval_lobes(CLI::App& eval, Commands& out);    // eval_plies.cpp
 void add_eval_noise(CLI::App& eval, Commands& out);    // eval_wave.cpp
 void add_eval_colour(CLI::App& eval, Commands& out);   // eval_wave.cpp
 void add_eval_fibers(CLI::App& eval, Commands& out);   // fiber_commands.cpp
-void add_eval_truth(CLI::App& eval, Commands& out);    // fiber_commands.cpp
+void add_eval_truth(CLI::App& eval, Commands& out);    // truth_commands.cpp
+void add_eval_swatch(CLI::App& eval, Commands& out);   // truth_commands.cpp
 
 }  // namespace loom::cli

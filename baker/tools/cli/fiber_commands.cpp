@@ -1,5 +1,5 @@
-// loom-bake fibers (the fiber tier's curves of a region), eval fibers (its look-up structures
-// against full realization) and eval truth (light traced through the fibers: fiber_truth.h).
+// loom-bake fibers (the fiber tier's curves of a region) and eval fibers (its look-up structures
+// against full realization).
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -7,16 +7,11 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <OpenImageIO/imageio.h>
-#include <filesystem>
-#include <sys/resource.h>
 
 #include "command.h"
 #include "loom/cli_values.h"
-#include "loom/colour.h"
 #include "loom/fiber_lookup.h"
 #include "loom/fiber_region.h"
-#include "loom/fiber_truth.h"
 #include "loom/spec.h"
 
 using nlohmann::json;
@@ -174,108 +169,6 @@ void add_eval_fibers(CLI::App& eval, Commands& out) {
                 "hybrid (z-binning, section 4.4.2) | realization-free (Algorithm 3)")
       ->check(CLI::IsMember({"hybrid", "realization-free"}));
   out.push_back({c, [a] { return eval_fibers(*a); }});
-}
-
-namespace {
-
-struct EvalTruthArgs {
-  std::string spec, wi, out;
-  loom::TruthSettings s;
-};
-
-/// The tally as a float RGB OpenEXR image (res x res, the first scanline is cos theta_o = -1),
-/// written beside its place and renamed into it, so that a failed write leaves nothing.
-bool write_truth_image(const loom::TruthResult& r, const loom::Vec3d& wi, const std::string& path) {
-  namespace fs = std::filesystem;
-  const fs::path dst(path), tmp = dst.parent_path() / (".tmp-" + dst.filename().string());
-  auto out = OIIO::ImageOutput::create(dst.filename().string());
-  if (!out) return false;
-  OIIO::ImageSpec spec(r.res, r.res, 3, OIIO::TypeDesc::FLOAT);
-  spec.attribute("loom:layout", "f(wi, wo) |cos theta_o| per sr; rows: cos theta_o from -1 "
-                                "(first scanline) to 1; columns: phi_o = atan2(y, x) from -pi; "
-                                "the light through the gaps (a delta at -wi) is not in it");
-  spec.attribute("loom:wi", fmt::format("{},{},{}", wi.x, wi.y, wi.z));
-  if (!out->open(tmp.string(), spec) ||
-      !out->write_image(OIIO::TypeDesc::FLOAT, r.density.data()) || !out->close()) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    return false;
-  }
-  std::error_code ec;
-  fs::rename(tmp, dst, ec);
-  return !ec;
-}
-
-int eval_truth(const EvalTruthArgs& a) {
-  auto res = loom::load_spec(a.spec);
-  if (!res.ok()) return report_spec_errors(a.spec, res.errors);
-  loom::resolve_yarn_colours(res.spec, loom::ColourConverter(""));  // as bake does by default
-  const auto w = loom::parse_cli_direction("--wi", a.wi);
-  const loom::Vec3d wi{w[0], w[1], w[2]};
-  if (!(std::fabs(wi.z) >= 1e-3)) {
-    std::cerr << "error: --wi: the light must not lie in the cloth's plane (|z| >= 1e-3 of a "
-                 "unit vector; got "
-              << a.wi << ")\n";
-    return 2;
-  }
-  if (!a.out.empty() && !OIIO::ImageOutput::create(a.out)) {
-    std::cerr << "error: --out: " << a.out << ": not an image format OpenImageIO writes (use .exr)\n";
-    return 2;
-  }
-  using clock = std::chrono::steady_clock;
-  const auto t0 = clock::now();
-  const loom::TruthResult r = loom::fiber_truth(res.spec, wi, a.s);
-  const double secs = std::chrono::duration<double>(clock::now() - t0).count();
-  if (!a.out.empty() && !write_truth_image(r, wi, a.out)) {
-    std::cerr << "error: --out: cannot write " << a.out << "\n";
-    return 1;
-  }
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  std::cout << json{{"spec", res.spec.name},
-                    {"wi", {wi.x, wi.y, wi.z}},
-                    {"reflect", r.reflect},
-                    {"transmit", r.transmit},
-                    {"absorbed", r.absorbed},
-                    {"reflect_se", r.reflect_se},
-                    {"transmit_se", r.transmit_se},
-                    {"absorbed_se", r.absorbed_se},
-                    {"direct", r.direct},
-                    {"truncated", r.truncated},
-                    {"rays", r.rays},
-                    {"res", r.res},
-                    {"tile_um", r.tile_um},
-                    {"z_um", {r.z_lo_um, r.z_hi_um}},
-                    {"curves", r.curves},
-                    {"segments", r.segments},
-                    {"seconds", secs},
-                    {"peak_rss_mib", double(ru.ru_maxrss) / 1024.0},
-                    {"out", a.out.empty() ? json(nullptr) : json(a.out)}}
-                   .dump()
-            << std::endl;
-  return 0;
-}
-
-}  // namespace
-
-void add_eval_truth(CLI::App& eval, Commands& out) {
-  auto a = std::make_shared<EvalTruthArgs>();
-  auto* c = eval.add_subcommand(
-      "truth", "trace light through the explicit fibers of a periodic tile of the fabric (the "
-               "fiber-level ground truth); print JSON: reflect, transmit, absorbed (RGB "
-               "fractions of the incident power) with their Monte Carlo standard errors");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
-  c->add_option("--wi", a->wi, "X,Y,Z: direction towards the light in the cloth's frame (x along "
-                               "the warp, z the normal; z < 0 lights the back)")
-      ->required();
-  c->add_option("--rays", a->s.rays, "rays traced")->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
-  c->add_option("--res", a->s.res, "tally bins per side over the sphere")
-      ->check(CLI::Range(1, 4096));
-  c->add_option("--seed", a->s.seed, "seed of the rays");
-  c->add_option("--min-yarns", a->s.min_yarns, "yarns across the tile in each direction, at least")
-      ->check(CLI::Range(1, 256));
-  c->add_option("--out", a->out, "write the tally (f |cos theta_o| per sr, RGB) as OpenEXR");
-  out.push_back({c, [a] { return eval_truth(*a); }});
 }
 
 }  // namespace loom::cli
