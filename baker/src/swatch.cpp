@@ -31,15 +31,22 @@ Swatch SwatchPaths::swatch(const std::vector<FiberMaterial>& m) const {
     out.up_reflect[c] = u.reflect[c], out.up_transmit[c] = u.transmit[c];
     double x = s_.card;
     if (pile) {
-      const double r = d.reflect[c], t = d.transmit[c];
-      out.down_reflect[c] = r, out.down_transmit[c] = t;
-      const double b = 1 + r * r - t * t;
-      x = r > 1e-12 ? (b - std::sqrt(std::max(b * b - 4 * r * r, 0.0))) / (2 * r) : 0.0;
+      out.down_reflect[c] = d.reflect[c], out.down_transmit[c] = d.transmit[c];
+      x = pile_reflectance(d.reflect[c], d.transmit[c]);
     }
     out.below[c] = x;
-    out.rho[c] = f.reflect[c] + f.transmit[c] * x * u.transmit[c] / (1 - u.reflect[c] * x);
+    out.rho[c] = swatch_rho(f.reflect[c], f.transmit[c], x, u.transmit[c], u.reflect[c]);
   }
   return out;
+}
+
+double pile_reflectance(double r, double t) {
+  const double b = 1 + r * r - t * t;
+  return r > 1e-12 ? (b - std::sqrt(std::max(b * b - 4 * r * r, 0.0))) / (2 * r) : 0.0;
+}
+
+double swatch_rho(double R, double T, double X, double T_back, double R_back) {
+  return R + T * X * T_back / (1 - R_back * X);
 }
 
 SwatchSolve SwatchPaths::solve(const std::array<double, 3>& target) const {

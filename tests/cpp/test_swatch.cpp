@@ -9,7 +9,10 @@
 #include <nlohmann/json.hpp>
 
 #include "fiber_row.h"
+#include "loom/atlas.h"
+#include "loom/atlas_swatch.h"
 #include "loom/delta_e.h"
+#include "loom/raywave_bsdf.h"
 #include "loom/spec.h"
 #include "loom/swatch.h"
 #include "test_util.h"
@@ -182,12 +185,69 @@ TEST(Swatch, RaywaveBakeAbsorbsWhatShowsThePickedColour) {
       << shown.rho[0] << " " << shown.rho[1] << " " << shown.rho[2];
 }
 
+TEST(AtlasSwatch, PartsAgreeWithTheRaywaveAlbedo) {
+  // atlas_swatch's integrals against raywave_albedo's own quadrature (another grid over the
+  // sphere): R and T at the 8 degree view, and the diffuse parts over the view cells' midpoints
+  // (n_views 1: (0, +-0.866, +-0.5), each pi sr of a hemisphere). Both read every texel of the
+  // 32 x 32 draft maps once, so only the quadratures differ. And on a black card the swatch is R.
+  const auto atlas = loom::load_atlas(loom::test::draft_atlas("plain", "raywave").string());
+  ASSERT_EQ(atlas.map("ply_frame").width, 32);
+  loom::AtlasSwatchSettings st;
+  st.points = 1024;
+  st.n = 16;
+  st.n_views = 1;
+  const loom::Swatch sw = loom::atlas_swatch(atlas, loom::Evaluator::Model, st);
+  const auto d = loom::load_raywave(atlas);
+  const double t8 = 8 * M_PI / 180;
+  const loom::shading::vec3 V8(float(std::sin(t8) * M_SQRT1_2), float(std::sin(t8) * M_SQRT1_2),
+                               float(std::cos(t8)));
+  auto albedo = [&](loom::shading::vec3 o) {
+    return loom::raywave_albedo(atlas, d, o, loom::Evaluator::Model, 1024, 32);
+  };
+  const auto q8 = albedo(V8);
+  std::array<double, 3> r{}, t{}, Ru{}, Tu{};
+  for (float side : {1.0f, -1.0f})
+    for (float y : {0.8660254f, -0.8660254f}) {
+      const auto q = albedo(loom::shading::vec3(0.0f, y, 0.5f * side));
+      const double w = 0.5 * M_PI / M_PI;  // |cos o| dv / pi
+      for (size_t c = 0; c < 3; ++c) {
+        (side > 0 ? r : Ru)[c] += w * q.reflect[c];  // light on the view's side
+        (side > 0 ? Tu : t)[c] += w * (q.transmit[c] + q.gap);
+      }
+    }
+  for (size_t c = 0; c < 3; ++c) {
+    SCOPED_TRACE(c);
+    EXPECT_NEAR(sw.reflect[c], q8.reflect[c], 0.03 * q8.reflect[c]);
+    EXPECT_NEAR(sw.transmit[c], q8.transmit[c] + q8.gap, 0.03 * (q8.transmit[c] + q8.gap));
+    EXPECT_NEAR(sw.down_reflect[c], r[c], 0.03 * r[c]);
+    EXPECT_NEAR(sw.down_transmit[c], t[c], 0.03 * t[c]);
+    EXPECT_NEAR(sw.up_reflect[c], Ru[c], 0.03 * Ru[c]);
+    EXPECT_NEAR(sw.up_transmit[c], Tu[c], 0.03 * Tu[c]);
+  }
+  st.card = 0;
+  st.n_views = 1;
+  const loom::Swatch black = loom::atlas_swatch(atlas, loom::Evaluator::Model, st);
+  for (size_t c = 0; c < 3; ++c) EXPECT_DOUBLE_EQ(black.rho[c], black.reflect[c]);
+}
+
 TEST(SwatchCli, PrintsTheColoursAndRefusesBadInput) {
   const std::string exe = loom::test::bake_exe();
   std::string out;
   int rc = loom::test::run(exe + " eval swatch --spec plain --card 2 2>&1", &out);
   EXPECT_EQ(rc, 2) << out;
   EXPECT_NE(out.find("--card"), std::string::npos) << out;
+  rc = loom::test::run(exe + " eval swatch 2>&1", &out);  // neither --spec nor --atlas
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("--atlas"), std::string::npos) << out;
+  const auto dir = loom::test::draft_atlas("plain", "surface").string();
+  rc = loom::test::run(exe + " eval swatch --atlas " + dir, &out);
+  ASSERT_EQ(rc, 0) << out;
+  for (const char* k : {"model", "closures"}) {
+    const auto j = nlohmann::json::parse(out).at(k);
+    const double de = j.at("delta_e_2000").get<double>();  // one red for warp and weft
+    EXPECT_TRUE(std::isfinite(de) && de >= 0) << k;
+    for (double v : j.at("rho").get<std::array<double, 3>>()) EXPECT_TRUE(v > 0 && v < 1) << k;
+  }
   rc = loom::test::run(exe + " eval swatch --spec plain --rays 4000 --min-yarns 2", &out);
   ASSERT_EQ(rc, 0) << out;
   const auto j = nlohmann::json::parse(out);

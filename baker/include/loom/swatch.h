@@ -67,6 +67,12 @@ struct SwatchCurve {
 /// levels (0 below the first level); `clamped` when rho is out of the curve's range.
 double swatch_sigma(const SwatchCurve& c, double rho, bool* clamped = nullptr);
 
+/// The two formulas of the header, shared by the fibers' swatch and an atlas's (atlas_swatch.h):
+/// the pile's reflectance R_inf of layers of diffuse reflect r and transmit t, and the swatch
+/// rho = R + T X T_back / (1 - R_back X) for what lies below sending back X.
+double pile_reflectance(double r, double t);
+double swatch_rho(double R, double T, double X, double T_back, double R_back);
+
 /// The curve's rho at sigma per um (linear in log sigma between levels; rho(0) below the first).
 double swatch_rho_at(const SwatchCurve& c, double sigma_per_um);
 

@@ -13,6 +13,8 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "loom/atlas.h"
+#include "loom/atlas_swatch.h"
 #include "loom/cli_values.h"
 #include "loom/colour.h"
 #include "loom/delta_e.h"
@@ -150,7 +152,7 @@ void add_eval_truth(CLI::App& eval, Commands& out) {
 namespace {
 
 struct SwatchArgs {
-  std::string spec;
+  std::string spec, atlas;
   loom::SwatchSettings s;
 };
 
@@ -179,7 +181,42 @@ struct LabOf {
   }
 };
 
+/// The swatch an atlas renders (atlas_swatch.h), model and closures, against its picked colour.
+int eval_atlas_swatch(const SwatchArgs& a) {
+  const auto atlas = loom::load_atlas(a.atlas);
+  const LabOf lab(loom::ColourConverter(""));
+  const auto& cols = atlas.manifest.at("yarn_colours_linear");
+  const auto warp = cols.at("warp").get<std::array<double, 3>>();
+  const auto weft = cols.at("weft").get<std::array<double, 3>>();
+  loom::AtlasSwatchSettings st;
+  st.card = a.s.card;
+  st.light_deg = a.s.light_deg;
+  json out{{"atlas", a.atlas},
+           {"tier", atlas.manifest.value("tier", "")},
+           {"picked", {{"warp", warp}, {"weft", weft}}},
+           {"below", a.s.card < 0 ? json("folded to opacity") : json(a.s.card)}};
+  for (const auto e : {loom::Evaluator::Model, loom::Evaluator::Closures}) {
+    const loom::Swatch sw = loom::atlas_swatch(atlas, e, st);
+    json j{{"rho", sw.rho},
+           {"lab", lab(sw.rho)},
+           {"reflect", sw.reflect},
+           {"transmit", sw.transmit},
+           {"below", sw.below}};
+    // One picked colour to compare with when warp and weft are one colour.
+    j["delta_e_2000"] = warp == weft ? json(loom::delta_e_2000(lab(warp), lab(sw.rho))) : json(nullptr);
+    out[e == loom::Evaluator::Model ? "model" : "closures"] = j;
+  }
+  std::cout << out.dump() << std::endl;
+  return 0;
+}
+
 int eval_swatch(const SwatchArgs& a) {
+  if (a.spec.empty() == a.atlas.empty()) {
+    std::cerr << "error: --spec or --atlas: give one (the fibers of a spec, or what an atlas "
+                 "renders)\n";
+    return 2;
+  }
+  if (!a.atlas.empty()) return eval_atlas_swatch(a);
   auto res = loom::load_spec(a.spec);
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   const loom::ColourConverter cc("");
@@ -244,8 +281,12 @@ void add_eval_swatch(CLI::App& eval, Commands& out) {
       "swatch", "the colour a spec's cloth shows as a swatch folded to opacity, light at 8 degrees "
                 "(swatch.h), traced through its fibers: today's reading of the yarn colour "
                 "(the ply's albedo) and the absorption that makes the swatch the picked colour, "
-                "each with Delta E 2000 to it; print JSON");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
+                "each with Delta E 2000 to it; with --atlas, the swatch the atlas renders; print "
+                "JSON");
+  c->add_option("--spec", a->spec, "fabric spec file or preset name");
+  c->add_option("--atlas", a->atlas,
+                "instead of --spec: the swatch the atlas renders, by its model and by its "
+                "closures (atlas_swatch.h)");
   a->s.truth.rays = 100000;
   c->add_option("--rays", a->s.truth.rays, "rays of each of the two traces (default 100000)")
       ->check(CLI::Range(uint64_t(100), uint64_t(1) << 32));
