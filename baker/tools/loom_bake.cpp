@@ -1,11 +1,16 @@
 // loom-bake: bake a fabric spec into an atlas, inspect an atlas, and probe its BSDF. Each
 // subcommand lives in baker/tools/cli/ (command.h); this file adds them and runs the one given.
+#include <tbb/global_control.h>
+
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
+#include <optional>
+#include <string>
 
 #include "cli/command.h"
 #include "loom/cli_values.h"
+#include "loom_version.h"
 
 int main(int argc, char** argv) {
   namespace cli = loom::cli;
@@ -19,6 +24,17 @@ int main(int argc, char** argv) {
       "  loom-bake inspect out.atlas\n"
       "  loom-bake eval bsdf --atlas out.atlas --uv 0.3,0.6 --wi 0,0.5,0.866 --wo 0,0,1"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("loom-bake ") + LOOM_VERSION + " (commit " +
+                                        LOOM_COMMIT + ")");
+  // Like oiiotool's and maketx's: all cores unless told; given before or after the subcommand.
+  unsigned threads = 0;
+  app.add_option("--threads", threads, "worker threads (default: all cores)")
+      ->check(CLI::Range(1u, 4096u));
+  app.fallthrough();
+  app.footer(
+      "Exit codes: 0 done; 1 failed (could not read or write, or an internal error); 2 bad "
+      "input (command line, spec, value: the field and its allowed range are named, nothing "
+      "is written); 3 not a valid atlas.");
   cli::Commands commands;
   cli::add_bake(app, commands);
   cli::add_inspect(app, commands);
@@ -40,6 +56,8 @@ int main(int argc, char** argv) {
     // --help and --version exit 0; every bad command line exits 2, like every other bad input.
     return app.exit(e) == 0 ? 0 : 2;
   }
+  std::optional<tbb::global_control> limit;
+  if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
   try {
     for (const cli::Command& c : commands)
       if (c.app->parsed()) return c.run();

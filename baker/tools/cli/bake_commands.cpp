@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "loom/atlas_writer.h"
 #include "loom/bake.h"
 #include "loom/ply_maps.h"
 #include "loom/spec.h"
@@ -64,6 +65,12 @@ void add_bake(CLI::App& app, Commands& out) {
         std::cerr << fmt::format("\r{:<12} {:3.0f}%", stage, 100 * f) << std::flush;
         if (f >= 1.0) std::cerr << "\n";
       };
+    }
+    try {  // a destination that is not an atlas is bad input (exit 2), found before any work
+      loom::check_bake_destination(a->out_dir);
+    } catch (const std::runtime_error& e) {
+      std::cerr << "error: -o: " << e.what() << "\n";
+      return 2;
     }
     auto r = loom::bake_atlas(res.spec, a->out_dir, opt);
     std::cout << json{{"atlas", r.dir.string()},

@@ -1,0 +1,79 @@
+// loom-bake's command-line conventions (issue 34, first part): --version with the commit,
+// --threads before or after the subcommand (results independent of it), the exit codes in
+// --help, and a destination that is not an atlas refused as bad input with nothing written.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <algorithm>
+#include <cctype>
+#include <string>
+
+#include "test_util.h"
+
+namespace {
+
+TEST(CliConventions, VersionNamesTheCommit) {
+  std::string out;
+  ASSERT_EQ(loom::test::run(loom::test::bake_exe() + " --version", &out), 0) << out;
+  // "loom-bake X.Y.Z (commit C)", C hexadecimal (7 to 40 digits, "-dirty" after it for a
+  // changed tree) or "unknown" outside a git checkout.
+  const std::string head = "loom-bake ", mid = " (commit ";
+  ASSERT_EQ(out.rfind(head, 0), 0u) << out;
+  const size_t m = out.find(mid), end = out.find(')');
+  ASSERT_TRUE(m != std::string::npos && end != std::string::npos && end > m) << out;
+  const std::string version = out.substr(head.size(), m - head.size());
+  EXPECT_EQ(std::count(version.begin(), version.end(), '.'), 2) << version;
+  for (char c : version) EXPECT_TRUE(std::isdigit(static_cast<unsigned char>(c)) || c == '.') << version;
+  std::string commit = out.substr(m + mid.size(), end - m - mid.size());
+  if (commit.size() > 6 && commit.substr(commit.size() - 6) == "-dirty") commit.resize(commit.size() - 6);
+  if (commit != "unknown") {
+    EXPECT_GE(commit.size(), 7u) << commit;
+    EXPECT_LE(commit.size(), 40u) << commit;
+    for (char c : commit) EXPECT_TRUE(std::isxdigit(static_cast<unsigned char>(c))) << commit;
+  }
+}
+
+TEST(CliConventions, HelpListsTheExitCodes) {
+  std::string out;
+  ASSERT_EQ(loom::test::run(loom::test::bake_exe() + " --help", &out), 0);
+  for (const char* s : {"Exit codes", "0 done", "1 failed", "2 bad input", "3 not a valid atlas",
+                        "--threads", "--version"})
+    EXPECT_NE(out.find(s), std::string::npos) << s;
+}
+
+TEST(CliConventions, ThreadsChangeNothingButTheSpeed) {
+  const std::string exe = loom::test::bake_exe();
+  const std::string cmd = " eval truth --spec plain --wi 0.3,0.1,0.9 --rays 3000 --min-yarns 2";
+  std::string all, one, before;
+  ASSERT_EQ(loom::test::run(exe + cmd, &all), 0) << all;
+  ASSERT_EQ(loom::test::run(exe + cmd + " --threads 1", &one), 0) << one;
+  ASSERT_EQ(loom::test::run(exe + " --threads 2" + cmd, &before), 0) << before;
+  for (const std::string* o : {&one, &before})
+    for (const char* k : {"reflect", "transmit", "absorbed"})
+      EXPECT_EQ(nlohmann::json::parse(*o).at(k), nlohmann::json::parse(all).at(k)) << k;
+  std::string bad;
+  EXPECT_EQ(loom::test::run(exe + " --threads 0 presets 2>&1", &bad), 2);
+  EXPECT_NE(bad.find("--threads"), std::string::npos) << bad;
+}
+
+TEST(CliConventions, BakingOverAFolderThatIsNotAnAtlasIsBadInput) {
+  namespace fs = std::filesystem;
+  const fs::path dir = loom::test::scratch("not-an-atlas");
+  fs::create_directories(dir);
+  std::ofstream(dir / "notes.txt") << "a user's file\n";
+  std::string out;
+  EXPECT_EQ(loom::test::run(loom::test::bake_exe() + " bake plain --progress none -o " +
+                                dir.string() + " 2>&1",
+                            &out),
+            2)
+      << out;
+  EXPECT_NE(out.find("-o"), std::string::npos) << out;
+  EXPECT_NE(out.find("not a Loom atlas"), std::string::npos) << out;
+  size_t n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) n += e.exists();
+  EXPECT_EQ(n, 1u);  // the user's file alone, untouched
+}
+
+}  // namespace
