@@ -10,6 +10,7 @@
 #include <cctype>
 #include <string>
 
+#include "loom/spec.h"
 #include "test_util.h"
 
 namespace {
@@ -41,6 +42,18 @@ TEST(CliConventions, HelpListsTheExitCodes) {
   for (const char* s : {"Exit codes", "0 done", "1 failed", "2 bad input", "3 not a valid atlas",
                         "--threads", "--version"})
     EXPECT_NE(out.find(s), std::string::npos) << s;
+}
+
+TEST(CliConventions, SpecHelpNamesEveryPreset) {
+  // Every subcommand that takes a spec lists every built-in preset in its help.
+  const std::string exe = loom::test::bake_exe();
+  for (const char* sub : {"bake", "check", "fibers", "eval truth", "eval swatch", "eval fibers",
+                          "eval plysim"}) {
+    std::string out;
+    ASSERT_EQ(loom::test::run(exe + " " + sub + " --help", &out), 0) << sub;
+    for (const std::string& name : loom::preset_names())
+      EXPECT_NE(out.find(name), std::string::npos) << sub << ": " << name;
+  }
 }
 
 TEST(CliConventions, ThreadsChangeNothingButTheSpeed) {

@@ -26,7 +26,7 @@ void add_bake(CLI::App& app, Commands& out) {
   };
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("bake", "bake a spec (file or preset name) into an atlas");
-  c->add_option("spec", a->spec, "spec file or preset name (plain, twill, satin, basket)")
+  c->add_option("spec", a->spec, spec_help())
       ->required();
   c->add_option("-o,--output", a->out_dir, "atlas directory to create (published atomically)")
       ->required();
@@ -91,7 +91,7 @@ void add_check(CLI::App& app, Commands& out) {
   };
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("check", "validate a spec and print its canonical form");
-  c->add_option("spec", a->spec, "spec file or preset name")->required();
+  c->add_option("spec", a->spec, spec_help())->required();
   c->add_option("--quality", a->quality, "override model.quality");
   c->add_flag("--geometry", a->geometry,
               "print {\"spec\": canonical spec, \"repeat_um\": [x, y], \"warp_yarns\", "

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "loom/cli_values.h"
+#include "loom/spec.h"
 
 namespace loom::cli {
 
@@ -19,6 +20,12 @@ CLI::Validator finite_range(double lo, double hi) {
         return "";
       },
       fmt::format("in [{}, {}]", lo, hi));
+}
+
+std::string spec_help() {
+  std::string names;
+  for (const std::string& n : loom::preset_names()) names += (names.empty() ? "" : ", ") + n;
+  return "spec file or preset name (" + names + ")";
 }
 
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors) {

@@ -23,6 +23,10 @@ using Commands = std::vector<Command>;
 /// reads exactly the number checked.
 CLI::Validator finite_range(double lo, double hi);
 
+/// The help of a spec argument: "spec file or preset name (plain, twill, ...)", every built-in
+/// preset named.
+std::string spec_help();
+
 /// Prints a spec's problems and "nothing was written"; returns 2.
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors);
 

@@ -296,7 +296,7 @@ void add_eval_plysim(CLI::App& eval, Commands& out) {
   auto a = std::make_shared<PlysimArgs>();
   auto* c = eval.add_subcommand(
       "plysim", "simulate one (theta_i, h) slice of ply scattering and print energy fractions");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
+  c->add_option("--spec", a->spec, spec_help())->required();
   c->add_option("--yarn", a->yarn, "warp | weft")->check(CLI::IsMember({"warp", "weft"}));
   c->add_option("--theta-i", a->theta, "incident angle from the ply's normal plane, "
                                        "degrees [-90, 90]")

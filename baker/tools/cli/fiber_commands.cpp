@@ -26,7 +26,7 @@ void add_fibers(CLI::App& app, Commands& out) {
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand(
       "fibers", "realize the fibers of a region of the fabric as curves (fiber tier)");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
+  c->add_option("--spec", a->spec, spec_help())->required();
   c->add_option("--region", a->region, "X0,Y0,X1,Y1 in um of the fabric plane (x along the warp)")
       ->required();
   c->add_option("--out", a->out, "directory to write (manifest.json and the curves)")
@@ -154,7 +154,7 @@ void add_eval_fibers(CLI::App& eval, Commands& out) {
   auto* c = eval.add_subcommand(
       "fibers", "look up seeded points in an N-yarn woven patch both by the fiber tier's "
                 "realization-minimising structures and by full realization; print JSON");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
+  c->add_option("--spec", a->spec, spec_help())->required();
   c->add_option("--yarns", a->yarns, "yarns in the patch (warp and weft together)")
       ->check(CLI::Range(2, loom::kMaxPatchYarns));
   c->add_option("--points", a->points, "seeded points to look up")

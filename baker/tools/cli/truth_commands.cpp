@@ -134,7 +134,7 @@ void add_eval_truth(CLI::App& eval, Commands& out) {
                "fiber-level ground truth); print JSON: reflect, transmit, absorbed (RGB "
                "fractions of the incident power) with their Monte Carlo standard errors, and "
                "noise_l1, the tally's Monte Carlo relative L1 over the bins");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name")->required();
+  c->add_option("--spec", a->spec, spec_help())->required();
   c->add_option("--wi", a->wi, "X,Y,Z: direction towards the light in the cloth's frame (x along "
                                "the warp, z the normal; z < 0 lights the back)")
       ->required();
@@ -283,7 +283,7 @@ void add_eval_swatch(CLI::App& eval, Commands& out) {
                 "(the ply's albedo) and the absorption that makes the swatch the picked colour, "
                 "each with Delta E 2000 to it; with --atlas, the swatch the atlas renders; print "
                 "JSON");
-  c->add_option("--spec", a->spec, "fabric spec file or preset name");
+  c->add_option("--spec", a->spec, spec_help());
   c->add_option("--atlas", a->atlas,
                 "instead of --spec: the swatch the atlas renders, by its model and by its "
                 "closures (atlas_swatch.h)");
