@@ -4,17 +4,6 @@
 
 namespace loom {
 
-Lab xyz_to_lab(const std::array<double, 3>& xyz) {
-  constexpr double white[3] = {0.95047, 1.0, 1.08883};  // D65, 2 degree observer
-  constexpr double e = 216.0 / 24389.0, k = 24389.0 / 27.0;
-  double f[3];
-  for (int i = 0; i < 3; ++i) {
-    const double t = xyz[size_t(i)] / white[i];
-    f[i] = t > e ? std::cbrt(t) : (k * t + 16) / 116;
-  }
-  return {116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])};
-}
-
 double delta_e_2000(const Lab& x, const Lab& y) {
   const double deg = M_PI / 180;
   const double c1 = std::hypot(x[1], x[2]), c2 = std::hypot(y[1], y[2]);

@@ -28,8 +28,9 @@ struct AtlasSwatchSettings {
   int n_views = 4;   ///< view cells per hemisphere of the diffuse parts
 };
 
-/// rho and its parts (Swatch's fields: reflect R, transmit T, up_* R_u and t of the light from
-/// below... see the header; down_* r and t from above, below X).
+/// rho and its parts in Swatch's fields: reflect and transmit R, T at the 8 degree view;
+/// down_reflect, down_transmit r, t of diffuse light from above; up_reflect, up_transmit of
+/// diffuse light from below (R_u, and what passes upwards); below X.
 Swatch atlas_swatch(const Atlas& a, Evaluator e, const AtlasSwatchSettings& s = {});
 
 }  // namespace loom

@@ -20,6 +20,7 @@
 #include "loom/delta_e.h"
 #include "loom/fiber_truth.h"
 #include "loom/spec.h"
+#include "loom/spectral_upsampling.h"
 #include "loom/swatch.h"
 #include "loom/truth_error.h"
 
@@ -156,35 +157,11 @@ struct SwatchArgs {
   loom::SwatchSettings s;
 };
 
-/// Scene-linear RGB to CIELAB through the colour converter's XYZ (the inverse of its
-/// XYZ -> linear matrix), so that a bake's OCIO working space is honoured.
-struct LabOf {
-  std::array<std::array<double, 3>, 3> inv{};
-  explicit LabOf(const loom::ColourConverter& cc) {
-    const auto m = cc.xyz_to_linear_matrix();
-    const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                       m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                       m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {  // cofactor (j, i) over the determinant
-        const int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
-        inv[size_t(i)][size_t(j)] =
-            (m[size_t(r0)][size_t(c0)] * m[size_t(r1)][size_t(c1)] -
-             m[size_t(r0)][size_t(c1)] * m[size_t(r1)][size_t(c0)]) / det;
-      }
-  }
-  loom::Lab operator()(const std::array<double, 3>& rgb) const {
-    std::array<double, 3> xyz{};
-    for (size_t i = 0; i < 3; ++i)
-      for (size_t j = 0; j < 3; ++j) xyz[i] += inv[i][j] * rgb[j];
-    return loom::xyz_to_lab(xyz);
-  }
-};
-
 /// The swatch an atlas renders (atlas_swatch.h), model and closures, against its picked colour.
 int eval_atlas_swatch(const SwatchArgs& a) {
   const auto atlas = loom::load_atlas(a.atlas);
-  const LabOf lab(loom::ColourConverter(""));
+  const loom::SpectralUpsampler lab_of(loom::ColourConverter(""));  // its CIELAB
+  auto lab = [&](const std::array<double, 3>& c) { return lab_of.lab(c); };
   const auto& cols = atlas.manifest.at("yarn_colours_linear");
   const auto warp = cols.at("warp").get<std::array<double, 3>>();
   const auto weft = cols.at("weft").get<std::array<double, 3>>();
@@ -221,7 +198,8 @@ int eval_swatch(const SwatchArgs& a) {
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   const loom::ColourConverter cc("");
   loom::resolve_yarn_colours(res.spec, cc);  // as bake does by default
-  const LabOf lab(cc);
+  const loom::SpectralUpsampler lab_of(cc);  // its CIELAB
+  auto lab = [&](const std::array<double, 3>& c) { return lab_of.lab(c); };
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   const auto scene = loom::make_truth_scene(res.spec, a.s.truth.min_yarns);
