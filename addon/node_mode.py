@@ -44,7 +44,7 @@ from . import osl_source
 from .node_texel_guard import texel_guard_geometry, texel_guard_horizon, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
-                         mix, normalize, select, sqrt, vec)
+                         mix, normalize, select, sqrt, sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Surface"
 MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
@@ -307,12 +307,12 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     if group is None or group.bl_idname != "ShaderNodeTree":
         group = bpy.data.node_groups.new(name, "ShaderNodeTree")
     group.nodes.clear()
-    group.interface.clear()
-    s_in = group.interface.new_socket("Scale", in_out="INPUT", socket_type="NodeSocketFloat")
+    sync_sockets(group, "INPUT", [("Scale", "NodeSocketFloat")])
+    sync_sockets(group, "OUTPUT", [("BSDF", "NodeSocketShader")])
+    s_in = group.interface.items_tree["Scale"]
     s_in.default_value = 1.0
     s_in.min_value = 0.0
     s_in.description = "weave repeats per UV unit"
-    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
     group["loom_atlas"] = os.path.abspath(atlas_dir)
     group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
     group.description = f"Loom surface cloth from atlas {os.path.abspath(atlas_dir)}"

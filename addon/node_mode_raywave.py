@@ -47,8 +47,9 @@ import os
 import bpy
 
 from . import node_mode, node_texel_guard, node_visibility
-from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, exp, fabs,
-                         floor, length, max_, min_, normalize, select, sin, sqrt, vec)
+from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, fabs,
+                         floor, length, log, max_, min_, normalize, select, sin, sqrt,
+                         sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Ray-wave"
 SHADER = "loom_cloth_raywave.osl"
@@ -63,8 +64,7 @@ FACTORS_LAYOUT = "k_b,k_f"
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
                       "LOOM_RAYWAVE_SIDE_BAND", "LOOM_RAYWAVE_REFRACTION_BAND",
-                      "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_CLOSED_FORM_MU",
-                      "LOOM_ASG_INTEGRAL_STEPS", "LOOM_ASG_INTEGRAL_WIDTHS", "LOOM_ASG_MU_MAX",
+                      "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_INTEGRAL_LUT_SIZE", "LOOM_ASG_MU_MAX",
                       "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
                       "LOOM_DIFFRACTION_ICDF_SIZE", "LOOM_DIFFRACTION_KERNEL_RAD",
                       "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES",
@@ -76,11 +76,11 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 TRANSCRIBED_FROM = {
     "include/loom/raywave_lobes.h": "ca74348eaa1d3868",
     "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
-    "include/loom/asg.h": "837c6aaf61b2da26",
+    "include/loom/asg.h": "8e66624946a2b7e5",
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
     "include/loom/diffraction_sampling.h": "4552302033af31ad",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
-    "loom_cloth_raywave.osl": "7f3f3ce962b1d515",
+    "loom_cloth_raywave.osl": "407aed919a31d683",
 }
 
 
@@ -105,51 +105,27 @@ def asg_frame(theta_z, phi_z, phi_xy):
     return x0 * ca - y0 * sa, x0 * sa + y0 * ca, z
 
 
-def asg_erf(x):
-    """asg.h: asg_erf(x) (Abramowitz and Stegun 7.1.26), x >= 0.
-
-        t = 1 / (1 + 0.3275911 x);  1 - t (a1 + t (a2 + t (a3 + t (a4 + t a5)))) exp(-x^2)"""
-    t = 1.0 / (1.0 + 0.3275911 * x)
-    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741
-                                                       + t * (-1.453152027 + t * 1.061405429))))
-    return 1.0 - poly * exp(-(x * x))
+def asg_integral_lut_coord(mu, K):
+    """asg.h: asg_integral_lut_coord(mu) = log(1 + clamp(mu, 0, MU_MAX)) / log(1 + MU_MAX)."""
+    top = K["LOOM_ASG_MU_MAX"]
+    return log(1.0 + clamp(mu, 0.0, top)) * (1.0 / math.log(1.0 + top))
 
 
-def asg_chord(mu, r):
-    """asg.h: asg_chord(mu, r) = mu r^2 < 1e-4 ? 2 r (1 - mu r^2 / 3)
-    : sqrt(pi) / sqrt(mu) asg_erf(sqrt(mu) r)."""
-    x2 = mu * r * r
-    sm = sqrt(mu)
-    return select(x2 < 1e-4, 2.0 * r * (1.0 - x2 * (1.0 / 3.0)),
-                  math.sqrt(math.pi) / max_(sm, 1e-30) * asg_erf(sm * r))
+def asg_integral_lut_uv(mu1, mu2, K):
+    """asg.h: asg_integral_lut_uv(mu1, mu2) -> (s, tv) = ((0.5 + coord(mu) (n - 1)) / n),
+    n = LOOM_ASG_INTEGRAL_LUT_SIZE."""
+    n = K["LOOM_ASG_INTEGRAL_LUT_SIZE"]
+    return ((0.5 + asg_integral_lut_coord(mu1, K) * (n - 1.0)) * (1.0 / n),
+            (0.5 + asg_integral_lut_coord(mu2, K) * (n - 1.0)) * (1.0 / n))
 
 
-def asg_integral(mu1_in, mu2_in, c, K):
-    """asg.h: asg_integral(mu1, mu2, c).
-
-        c > 0 or 0;  mu = clamp(mu_in, 0, MU_MAX);  lo, hi = min, max(mu1, mu2)
-        lo >= CLOSED_FORM_MU: c pi / sqrt(lo hi)
-        else Psi = asin(min(1, WIDTHS / sqrt(max(hi, 1e-12)))), dpsi = Psi / STEPS,
-             2 c dpsi sum_{i < STEPS} exp(-hi sin^2 ps_i) asg_chord(lo, cos ps_i) cos ps_i,
-             ps_i = (i + 0.5) dpsi"""
-    mu_max = K["LOOM_ASG_MU_MAX"]
-    mu1 = clamp(mu1_in, 0.0, mu_max)
-    mu2 = clamp(mu2_in, 0.0, mu_max)
-    lo = min_(mu1, mu2)
-    hi = max_(mu1, mu2)
-    closed = c * math.pi / sqrt(lo * hi)
-    steps = int(K["LOOM_ASG_INTEGRAL_STEPS"])
-    psi_max = asin(min_(1.0, K["LOOM_ASG_INTEGRAL_WIDTHS"] / sqrt(max_(hi, 1e-12))))
-    dpsi = psi_max * (1.0 / steps)
-    terms = []
-    for i in range(steps):
-        ps = dpsi * (i + 0.5)
-        sb = sin(ps)
-        cb = cos(ps)
-        terms.append(exp(-(hi * sb * sb)) * asg_chord(lo, cb) * cb)
-    numeric = 2.0 * c * node_visibility.balanced_sum(terms) * dpsi
-    value = select(lo < K["LOOM_ASG_CLOSED_FORM_MU"], numeric, closed)
-    return select(c > 0.0, value, 0.0)
+def asg_integral_from_lut(h, mu1, mu2, c, K):
+    """asg.h: asg_integral_from_lut(h, mu1, mu2, c) = c > 0 ? c pi h / sqrt((1 + m1) (1 + m2))
+    : 0, m = clamp(mu, 0, MU_MAX)."""
+    top = K["LOOM_ASG_MU_MAX"]
+    m1 = clamp(mu1, 0.0, top)
+    m2 = clamp(mu2, 0.0, top)
+    return select(c > 0.0, c * math.pi * h / sqrt((1.0 + m1) * (1.0 + m2)), 0.0)
 
 
 # ======================================================================= raywave_lobes.h
@@ -741,7 +717,7 @@ def atlas_problem(manifest: dict) -> str | None:
                     f"add-on reads (double-layer factors of an older loom-bake): re-bake the "
                     f"atlas with this version of loom-bake")
         _grid(manifest)
-        needed = set(MAPS) | {rw["shading"]["microfacet_albedo"],
+        needed = set(MAPS) | {rw["shading"]["microfacet_albedo"], rw["shading"]["asg_integral"],
                               *rw["shading"]["factors"].values()}
         for y in ("warp", "weft"):
             files = rw["yarns"][y]["files"]
@@ -765,6 +741,10 @@ def atlas_problem(manifest: dict) -> str | None:
     got = list(textures[rw["shading"]["microfacet_albedo"]].get("size", []))
     if got != [n, n]:
         return f"microfacet albedo LUT is {got}, the shaders expect {[n, n]}"
+    n = int(K["LOOM_ASG_INTEGRAL_LUT_SIZE"])
+    got = list(textures[rw["shading"]["asg_integral"]].get("size", []))
+    if got != [n, n]:
+        return f"ASG integral LUT is {got}, the shaders expect {[n, n]}: re-bake the atlas"
     # The tables' sizes against the grids (raywave_lobes.h: asg_node_uv, asg_tint_uv).
     g = _grid(manifest)
     rows, cols = g["m"] // 2 + 1, g["n"] // 2 + 1
@@ -821,6 +801,7 @@ def osl_parameters(manifest: dict) -> tuple[dict, dict]:
     tex["factors_front"] = rw["shading"]["factors"]["front"]
     tex["factors_back"] = rw["shading"]["factors"]["back"]
     tex["microfacet_albedo"] = rw["shading"]["microfacet_albedo"]
+    tex["asg_integral_lut"] = rw["shading"]["asg_integral"]
     values = {"high_lobes": g["high_lobes"], "refl_lobes": g["refl_lobes"],
               "theta_count": g["m"], "h_count": g["n"], "theta_min": g["theta_min"],
               "theta_max": g["theta_max"], "layer_theta_count": g["layer_theta_count"],
@@ -862,21 +843,19 @@ def _new_group(name: str, inputs, outputs, description: str):
     if group is None or group.bl_idname != "ShaderNodeTree":
         group = bpy.data.node_groups.new(name, "ShaderNodeTree")
     group.nodes.clear()
-    group.interface.clear()
-    for n, kind in inputs:
-        group.interface.new_socket(n, in_out="INPUT", socket_type=kind)
-    for n, kind in outputs:
-        group.interface.new_socket(n, in_out="OUTPUT", socket_type=kind)
+    sync_sockets(group, "INPUT", list(inputs))
+    sync_sockets(group, "OUTPUT", list(outputs))
     group.description = description
     return group
 
 
-def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
+def build_lobe_group(name: str, albedo_image, integral_image, K, noise_image=None, refl=False,
                      noise_instances=1, functions: dict | None = None):
     """One lobe of loom_lobes (loom_cloth_raywave.osl) as a group: raywave_lobe_closures, the
-    microfacet albedo look-ups, the light-side visibility, raywave_lobe_weights and the lobe's
-    Glossy, Refraction and Translucent BSDFs (a closure whose share is 0 has weight 0). Built
-    once per atlas (it holds the atlas's albedo image) and used for every lobe: a group of a few
+    microfacet albedo look-ups, the light-side visibility, the lobe's integral from the ASG
+    integral LUT, raywave_lobe_weights and the lobe's Glossy, Refraction and Translucent BSDFs (a
+    closure whose share is 0 has weight 0). Built once per atlas (it holds the atlas's albedo and
+    integral images) and used for every lobe: a group of a few
     hundred nodes instead of one of thousands, which Blender builds and edits much faster.
 
     Each lobe ends in its own closures, although the translucent ones could share one closure
@@ -925,8 +904,15 @@ def build_lobe_group(name: str, albedo_image, K, noise_image=None, refl=False,
         z_vis = vec(z.x, z.y, max_(z.z, 1e-6))
         vis_z = b.label(select(back, 1.0, b.call(node_visibility.horizon_visibility, z_vis, hor, K=K)),
                         "vis_z")
-    with b.block("asg.h: asg_integral"):
-        integral = b.label(b.call(asg_integral, i["mu1"], i["p1"].x, i["p1"].y, K=K), "integral")
+    with b.block("asg.h: the lobe's integral from the LUT (asg_integral_from_lut)"):
+        hs, ht = asg_integral_lut_uv(i["mu1"], i["p1"].x, K)
+        node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                     label="asg_integral_lut")
+        node.image = integral_image
+        b.link(vec(hs, ht, 0.0), node.inputs["Vector"])
+        h_lut = b.vector_socket(node.outputs["Color"]).x
+        integral = b.label(asg_integral_from_lut(h_lut, i["mu1"], i["p1"].x, i["p1"].y, K),
+                           "integral")
     with b.block("raywave_lobes.h: raywave_lobe_weights"):
         w_refl, w_refr, w_transl = raywave_lobe_weights(
             integral, albedo_r, albedo_t, i["tint"], i["open"], i["vis_v"], vis_z, i["k_f"],
@@ -1017,15 +1003,17 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         return images[tex_name]
 
     albedo_img = image(rw["shading"]["microfacet_albedo"])
+    integral_img = image(rw["shading"]["asg_integral"])
     functions: dict = {}  # the function groups (Builder.call) of this build
     nz = _noise(manifest)
     if nz:  # f_refl and f_high lobes read different noise tiles (speckle_noise.h)
-        lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, K,
+        lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, integral_img, K,
                                               image(nz[part]), part == "refl", nz["instances"],
                                               functions)
                        for part in ("refl", "high")}
     else:
-        one = build_lobe_group(f"{name} lobe", albedo_img, K, functions=functions)
+        one = build_lobe_group(f"{name} lobe", albedo_img, integral_img, K,
+                               functions=functions)
         lobe_groups = {"refl": one, "high": one}
     for lg in lobe_groups.values():
         lg["loom_atlas"] = os.path.abspath(atlas_dir)
@@ -1268,9 +1256,19 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         # order, and a value stays on its stack (255 floats) until its last user is compiled.
         # The layers' closures read every lobe's `forward`; compiled after the lobes, they keep
         # only those few values alive, not every lobe's look-ups (see build_lobe_group).
-        total = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs), *gap_lobes,
-                               transp.outputs["BSDF"], tr.outputs["BSDF"],
-                               dif_node.outputs["BSDF"]))
+        # The gaps' closures behind a Mix Shader whose factor is 1 in a gap and 0 elsewhere:
+        # Cycles' SVM compiler jumps over a mix input of weight 0 and over the nodes only it
+        # needs (SVMCompiler::generate_multi_closure), so yarn points skip the diffraction
+        # sampling (the OSL shader's `if (gap > 0.0 ...)`); where it runs the factor is 1 and
+        # the weights are unchanged.
+        gap_closures = b.add_shaders((*gap_lobes, transp.outputs["BSDF"]))
+        if gap_lobes:
+            mix = b.new("ShaderNodeMixShader", label="gap > 0: the gaps' closures, else none")
+            b.link(gap > 0.0, mix.inputs["Fac"])
+            b.connect(gap_closures, mix.inputs[2])
+            gap_closures = mix.outputs["Shader"]
+        total = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs), gap_closures,
+                               tr.outputs["BSDF"], dif_node.outputs["BSDF"]))
         gout = b.new("NodeGroupOutput")
         b.connect(total, gout.inputs["BSDF"])
 

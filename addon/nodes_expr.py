@@ -8,19 +8,16 @@ and this module turns each operation into the node that computes it:
     open_ = 1.0 - clamp(c, 0.0, 1.0)          ->  Clamp node, Math SUBTRACT node
     V = vec(dot(Vw, T), dot(Vw, B), dot(Vw, N))  ->  3 Vector Math DOT_PRODUCT, Combine XYZ
 
-``F`` wraps a float socket, ``V`` a vector (or colour) socket. Python numbers (and 3-tuples for
-vectors) are constants: operations on constants only are folded in Python, constants mixed with
-sockets become the nodes' default input values, so no Value nodes clutter the tree.
+``F`` wraps a float socket, ``V`` a vector (or colour) socket. Python numbers (3-tuples for
+vectors) are constants, folded in Python or set as the nodes' default input values.
 
-Semantics are those of Blender's nodes, which differ from OSL/C++ in two places that the
-transcriptions rely on knowingly: division by zero gives 0 (Math DIVIDE and Vector Math SCALE with
-a safe inverse), and ``normalize`` of the zero vector gives the zero vector (as in OSL).
+Semantics are Blender's nodes', which differ from OSL/C++ where the transcriptions rely on it:
+division by zero gives 0 (Math DIVIDE, Vector Math SCALE with a safe inverse).
 Branches (``if`` in the headers) become ``select(cond, a, b)``: both sides are evaluated and a
 Mix node picks one with a 0/1 factor; the safe arithmetic above keeps the unused side finite.
 
-Every node created inside ``with builder.block("title"):`` is parented to a frame with that title
-(the header function it mirrors); ``builder.layout()`` places blocks left to right and, inside a
-block, nodes in columns by dependency depth, in creation order, so the result is deterministic.
+Nodes made inside ``with builder.block("title"):`` go in a frame with that title (the header
+function mirrored); ``builder.layout()`` places them deterministically.
 """
 
 from __future__ import annotations
@@ -114,18 +111,14 @@ class Builder:
         return total
 
     def call(self, fn, *args, **static):
-        """``fn(*args, **static)`` computed in a node group of its own and used here through a
+        """``fn(*args, **static)`` computed in a node group of its own, used here through a
         Group node; returns what fn returns, its expressions now the Group node's outputs.
-
-        Expressions among ``args`` (also inside a list, such as the horizon sines) become the
-        group's inputs; numbers and tuples of numbers are constants built into the group, and
-        constant results stay Python constants here, so folding goes on across the call;
-        ``static`` (the header constants K) is passed to fn as is. One group per function and
-        constants, built the first time a build calls it (the builders of one build share
-        ``functions``; a group of that name from an earlier build is rebuilt in place) and then
-        reused. Why: Blender updates the whole tree on each node, link and value it is given,
-        so building is quadratic in a tree's size (1,500 Math nodes in one tree: 5.3 s, in 15
-        trees of 100: 0.27 s, Blender 4.3), while Cycles inlines groups: the same shader."""
+        Expressions among ``args`` (also in lists) become the group's inputs, numbers and tuples
+        constants inside it (constant results stay Python constants, so folding goes on);
+        ``static`` (the header constants K) is passed as is. One group per function and
+        constants, built once per build (``functions``; an earlier build's is rebuilt in place).
+        Why: Blender's tree updates make building quadratic in a tree's size, while Cycles
+        inlines groups into the same shader."""
         import bpy  # here only: the rest of this module does not need Blender
 
         flat: list[Expr] = []
@@ -152,8 +145,9 @@ class Builder:
             group = bpy.data.node_groups.get(name)
             if group is None or group.bl_idname != "ShaderNodeTree":
                 group = bpy.data.node_groups.new(name, "ShaderNodeTree")
+            # Rebuilt in place, its sockets kept where they are the same: other materials use
+            # this group too, and their Group nodes lose their links when a socket goes.
             group.nodes.clear()
-            group.interface.clear()
             group.description = f"Loom: {fn.__name__} ({fn.__module__}), as in the headers"
             params = list(inspect.signature(fn).parameters)
             names = []
@@ -163,8 +157,7 @@ class Builder:
                     names += [(f"{base}[{j}]", x) for j, x in enumerate(d)]
                 elif isinstance(d, str):
                     names.append((base, d))
-            for n, kind in names:
-                group.interface.new_socket(n, in_out="INPUT", socket_type=_SOCKET[kind])
+            sync_sockets(group, "INPUT", [(n, _SOCKET[kind]) for n, kind in names])
             sub = Builder(group, self.functions)
             gin = sub.new("NodeGroupInput")
             inputs = iter(range(len(flat)))
@@ -180,14 +173,15 @@ class Builder:
             result = fn(*[rebuild(a, d) for a, d in zip(args, desc)], **static)
             items = list(result) if isinstance(result, tuple) else [result]
             outs = []  # per result: the output socket's index and kind, or None (a constant)
+            wanted = []
             for j, item in enumerate(items):
                 if isinstance(item, Expr):
                     kind = "V" if isinstance(item, V) else "F"
-                    group.interface.new_socket(f"out{j}", in_out="OUTPUT",
-                                               socket_type=_SOCKET[kind])
+                    wanted.append((f"out{j}", _SOCKET[kind]))
                     outs.append((sum(o is not None for o in outs), kind))
                 else:
                     outs.append(None)
+            sync_sockets(group, "OUTPUT", wanted)
             gout = sub.new("NodeGroupOutput")
             for item, o in zip(items, outs):
                 if o is not None:
@@ -317,6 +311,7 @@ _PY_MATH = {
     "SQRT": lambda a: math.sqrt(a) if a > 0 else 0.0,
     "ABSOLUTE": abs,
     "EXPONENT": math.exp,
+    "LOGARITHM": lambda a, b: math.log(a) / math.log(b) if a > 0 and b > 0 else 0.0,
     "FLOOR": math.floor,
     "ARCTAN2": math.atan2,
     "SINE": math.sin,
@@ -345,6 +340,17 @@ def _vec_math(op: str, *args, scale=None, out: str = "Vector"):
     if scale is not None:
         b.link(scale, node.inputs[3])
     return V(b, node.outputs[0]) if out == "Vector" else F(b, node.outputs[1])
+
+
+def sync_sockets(group, in_out: str, wanted: list) -> None:
+    """Give ``group`` the (name, type) sockets ``wanted`` on side ``in_out``, kept if it has them
+    (other trees' Group nodes of it lose their links when a socket is removed)."""
+    have = [s for s in group.interface.items_tree if s.item_type == "SOCKET" and s.in_out == in_out]
+    if [(s.name, s.socket_type) for s in have] != wanted:
+        for s in have:
+            group.interface.remove(s)
+        for n, kind in wanted:
+            group.interface.new_socket(n, in_out=in_out, socket_type=kind)
 
 
 class F(Expr):
@@ -485,6 +491,10 @@ def sqrt(x):
 
 def exp(x):
     return math_op("EXPONENT", x)
+
+
+def log(x):  # (Blender's Logarithm node: 0 for x <= 0)
+    return math_op("LOGARITHM", x, math.e)
 
 
 def fabs(x):

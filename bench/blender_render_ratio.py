@@ -68,6 +68,20 @@ def principled_sheen():
     return mat
 
 
+def node_counts(tree):
+    """(nodes, image reads) of a material's node tree with every group expanded, as Cycles'
+    SVM compiler inlines them (frames, reroutes and group inputs/outputs not counted)."""
+    nodes = reads = 0
+    for n in tree.nodes:
+        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+            a, b = node_counts(n.node_tree)
+            nodes, reads = nodes + a, reads + b
+        elif n.bl_idname not in ("NodeFrame", "NodeReroute", "NodeGroupInput", "NodeGroupOutput"):
+            nodes += 1
+            reads += n.bl_idname == "ShaderNodeTexImage"
+    return nodes, reads
+
+
 def relative_rmse(a, b):
     """sqrt(sum (a - b)^2 / sum b^2) over the RGB of two images of one size."""
     num = den = 0.0
@@ -163,12 +177,14 @@ def main():
     for name, ts in times.items():
         med = statistics.median(ts)
         ps = statistics.median(per_sample[name])
+        n_nodes, n_reads = node_counts(materials[name].node_tree)
         row = {"material": name, "ratio": ps / base_ps, "per_sample_s": ps,
+               "nodes": n_nodes, "image_reads": n_reads,
                "per_sample": per_sample[name], "median_s": med, "whole_ratio": med / base,
                "fixed_s": med - args.samples * ps, "times": ts}
         line = (f"loom-bench: {name:28s} per sample {ps * 1e3:8.3f} ms  ratio {ps / base_ps:6.2f}"
                 f"  (whole render {med:6.2f} s, ratio {med / base:6.2f}; fixed "
-                f"{row['fixed_s']:5.2f} s)")
+                f"{row['fixed_s']:5.2f} s; {n_nodes} nodes, {n_reads} image reads)")
         if args.reference is not None:
             row["relative_rmse"] = relative_rmse(images[name], images[args.reference])
             line += f"  rel. RMSE vs {args.reference} {row['relative_rmse']:.4f}"

@@ -310,6 +310,10 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
             sh.is_object() && sh.contains("factors_layout") ? sh["factors_layout"].dump()
                                                             : std::string("missing"),
             kLayerFactorsLayout));
+      if (!sh.is_object() || !sh.value("asg_integral", json()).is_string() ||
+          !tex.contains(sh["asg_integral"].get<std::string>()))
+        errors.push_back("raywave.shading.asg_integral: not a texture of the atlas (an atlas from "
+                         "an older loom-bake: re-bake it)");
       if (!sh.is_object() || !sh.value("microfacet_albedo", json()).is_string() ||
           !tex.contains(sh["microfacet_albedo"].get<std::string>()))
         errors.push_back("raywave.shading.microfacet_albedo: not a texture of the atlas");

@@ -329,6 +329,11 @@ void render_tables_stage(const BakeContext& ctx, const Tables& tables, json& ray
                         {"E_reflect", "E_refract", "0"},
                         "directional albedos of Cycles' Beckmann reflection and refraction "
                         "closures over (cos(N, V), sqrt(alpha)) (osl/include/loom/raywave_lobes.h)");
+  ctx.out.write_table(asg_integral_lut_image(), "asg_integral_lut", {"h"},
+                      "asg_integral(mu1, mu2, 1) sqrt((1 + mu1) (1 + mu2)) / pi over the "
+                      "bandwidths' log coordinates (osl/include/loom/asg.h: "
+                      "asg_integral_from_lut)");
+  shading["asg_integral"] = "asg_integral_lut";
   shading["seconds"] = seconds_since(st0);
   raywave["shading"] = shading;
   ctx.progress("shading tables", 1.0);

@@ -120,6 +120,15 @@ RaywaveData load_raywave(const Atlas& a) {
           LOOM_DOUBLE_LAYER_BLOCKS * (g.phi_count + 2), g.theta_count));
   }
   d.microfacet_albedo = &a.map(rw["shading"]["microfacet_albedo"].get<std::string>());
+  if (!rw["shading"].contains("asg_integral"))
+    throw std::runtime_error("raywave.shading.asg_integral: missing (an atlas from an older "
+                             "loom-bake: re-bake it)");
+  d.asg_integral = &a.map(rw["shading"]["asg_integral"].get<std::string>());
+  if (d.asg_integral->width != LOOM_ASG_INTEGRAL_LUT_SIZE ||
+      d.asg_integral->height != LOOM_ASG_INTEGRAL_LUT_SIZE)
+    throw std::runtime_error(fmt::format("raywave.shading.asg_integral: the LUT is {}x{}, not {}x{}",
+                                         d.asg_integral->width, d.asg_integral->height,
+                                         LOOM_ASG_INTEGRAL_LUT_SIZE, LOOM_ASG_INTEGRAL_LUT_SIZE));
   // Gap diffraction (diffraction_sampling.h), when the atlas has a gap table.
   const json& dif = rw.value("diffraction", json());
   if (dif.value("mode", "") == "tables" && dif.contains("files") && dif["files"].contains("gap")) {
@@ -426,7 +435,10 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
       }
       const float vis_z = q.back ? 1.0f : raywave_lobe_visibility(z, q.hor);
       vec3 w[3];  // by kind: 0 reflection, 1 translucent, 2 refraction
-      const float integral = asg_integral(a[3], b[0], b[1]);
+      float h_lut[4], hs, ht;  // the lobe's integral (asg.h: asg_integral_from_lut)
+      asg_integral_lut_uv(a[3], b[0], hs, ht);
+      sample_clamped(*d.asg_integral, hs, ht, h_lut);
+      const float integral = asg_integral_from_lut(h_lut[0], a[3], b[0], b[1]);
       const vec3 tint3(tintc[0], tintc[1], tintc[2]);
       raywave_lobe_weights(integral, Er[0], Et[1], tint3, q.open, q.vis_v, vis_z,
                            vec3(q.k_f[0], q.k_f[1], q.k_f[2]), q.s, b_refl, b_refr, w[0], w[2],

@@ -126,6 +126,20 @@ Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>&
   return img;
 }
 
+Image asg_integral_lut_image() {
+  const int S = LOOM_ASG_INTEGRAL_LUT_SIZE;
+  Image img(S, S, 1);
+  const double top = std::log1p(double(LOOM_ASG_MU_MAX));
+  for (int r = 0; r < S; ++r)
+    for (int i = 0; i < S; ++i) {
+      // The bandwidths at the texel centres (asg_integral_lut_uv inverted).
+      const double mu1 = std::expm1(top * i / (S - 1)), mu2 = std::expm1(top * r / (S - 1));
+      img.px(i, r)[0] = float(asg_integral(float(mu1), float(mu2), 1.0f) *
+                              std::sqrt((1 + mu1) * (1 + mu2)) / M_PI);
+    }
+  return img;
+}
+
 Image microfacet_albedo_image(int n) {
   const int S = LOOM_MICROFACET_ALBEDO_SIZE;
   Image img(S, S, 3);

@@ -165,6 +165,38 @@ def check_scene_model(plane, mat):
     mat.loom.preset = "plain"
 
 
+def link_signature(tree, out=None):
+    """The links of ``tree`` and of every group it uses, by tree name: what a material renders
+    with (a link cut shades its socket with the default value, a black material)."""
+    out = {} if out is None else out
+    if tree.name in out:
+        return out
+    out[tree.name] = sorted((lk.from_node.name, lk.from_socket.identifier, lk.to_node.name,
+                             lk.to_socket.identifier) for lk in tree.links)
+    for n in tree.nodes:
+        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+            link_signature(n.node_tree, out)
+    return out
+
+
+def check_second_material(plane, mat, loom):
+    """5d'. Building another ray-wave material leaves a first one as it was: materials of one
+    atlas share its groups and every ray-wave material the function groups (nodes_expr.call),
+    which each build rebuilds in place; a socket removed on the way cut the first material's
+    links (it rendered black)."""
+    before = link_signature(mat.node_tree)
+    other = loom.api.bake("white_silk_organza", quality="draft")
+    for atlas in (other, mat.loom.atlas_dir):  # another atlas, then the same one
+        loom.api.assign(plane, atlas, mode="nodes", scale=1.0,
+                        material=bpy.data.materials.new("Loom second"))
+        plane.material_slots[0].material = mat
+        after = link_signature(mat.node_tree)
+        cut = {t: len(set(before[t]) - set(after.get(t, []))) for t in before}
+        assert not any(cut.values()), f"links cut in the first material: {cut}"
+    print(f"loom-test: a second ray-wave material (another atlas, then the same) leaves the "
+          f"first one's {sum(len(v) for v in before.values())} links in {len(before)} trees")
+
+
 def main():
     args = lt.parse_args()
     import _cycles
@@ -325,6 +357,7 @@ def main():
     assert len(lobes) == rw["high"]["lobes"] + rw["refl"]["lobes"], len(lobes)
     print(f"loom-test: a ray-wave preset bakes and assigns: {len(lobes)} lobes, "
           f"{len(groups[0].nodes)} nodes ({time.monotonic() - t0:.1f} s)")
+    check_second_material(plane, mat, loom)
     mat.loom.preset = "plain"
     loom.api.assign(plane, atlas, mode="nodes", scale=12.5)
 

@@ -66,6 +66,7 @@ struct RaywaveData {
   const Image *nodes_high[2] = {}, *nodes_refl[2] = {}, *tint[2] = {}, *factors[2] = {};
   const Image* residual[2] = {};  ///< ply_residual_<yarn>
   const Image* microfacet_albedo = nullptr;
+  const Image* asg_integral = nullptr;  ///< asg_integral_lut (asg.h: asg_integral_from_lut)
   GapDiffraction diffraction;
   SpeckleNoise noise;
 };

@@ -49,6 +49,10 @@ void layer_factor_pair(const DoubleLayerFactors& f, float& kb, float& kf);
 /// layer_factors_<side>: the two RGB blocks (k_b, k_f) of double_layer_factors.h at sigma_rgb.
 Image layer_factors_image(const DoubleLayerGrid& g, const std::array<double, 3>& sigma_rgb);
 
+/// asg_integral_lut: what asg_integral_from_lut (osl/include/loom/asg.h) reads, one channel,
+/// LOOM_ASG_INTEGRAL_LUT_SIZE^2 texels over the bandwidths' LUT coordinates: the shaders take
+/// each lobe's integral from it instead of running asg_integral's quadrature per point.
+Image asg_integral_lut_image();
 /// The microfacet albedo LUT (raywave_lobes.h): E(cos(N, V), alpha) of Cycles' isotropic Beckmann
 /// reflection closure (F = 1), by quadrature in the half-vector domain with `n` x 4n points.
 Image microfacet_albedo_image(int n = 48);

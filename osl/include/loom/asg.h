@@ -98,6 +98,34 @@ LOOM_FN float asg_integral(float mu1_in, float mu2_in, float c) {
   return 2.0 * c * sum * dpsi;
 }
 
+/// Texels per side of the ASG integral LUT (the atlas's asg_integral_lut, made by the bake):
+/// shaders read a lobe's integral from it instead of running asg_integral's quadrature.
+#define LOOM_ASG_INTEGRAL_LUT_SIZE 64
+
+/// The LUT coordinate of a bandwidth, in [0, 1]: log(1 + mu) / log(1 + LOOM_ASG_MU_MAX).
+LOOM_FN float asg_integral_lut_coord(float mu) {
+  return log(1.0 + clamp(mu, 0.0, LOOM_ASG_MU_MAX)) / log(1.0 + LOOM_ASG_MU_MAX);
+}
+
+/// Image coordinates in the ASG integral LUT of bandwidths (mu1, mu2): texel centres at the
+/// coordinates k / (LOOM_ASG_INTEGRAL_LUT_SIZE - 1).
+LOOM_FN void asg_integral_lut_uv(float mu1, float mu2, LOOM_OUT(float) s, LOOM_OUT(float) tv) {
+  float n = LOOM_ASG_INTEGRAL_LUT_SIZE;
+  s = (0.5 + asg_integral_lut_coord(mu1) * (n - 1.0)) / n;
+  tv = (0.5 + asg_integral_lut_coord(mu2) * (n - 1.0)) / n;
+}
+
+/// The integral of a lobe (mu1, mu2, c) from the LUT's value h at its bandwidths. The LUT holds
+/// h = asg_integral(mu1, mu2, 1) sqrt((1 + mu1) (1 + mu2)) / pi, which is 1 at mu = 0 and tends
+/// to 1 for sharp lobes (pi / sqrt(mu1 mu2)): smooth in the LUT's log coordinates, so a bilinear
+/// look-up keeps it within a fraction of a percent (tests/cpp/test_asg.cpp).
+LOOM_FN float asg_integral_from_lut(float h, float mu1, float mu2, float c) {
+  if (!(c > 0.0))
+    return 0.0;
+  float m1 = clamp(mu1, 0.0, LOOM_ASG_MU_MAX), m2 = clamp(mu2, 0.0, LOOM_ASG_MU_MAX);
+  return c * LOOM_M_PI * h / sqrt((1.0 + m1) * (1.0 + m2));
+}
+
 /// Eq. S.1 and its gradient with respect to the six parameters (theta_z, phi_z, phi_xy, mu1,
 /// mu2, c), for the fitter, from the lobe's precomputed trigonometry (st, ct = sin, cos theta_z;
 /// sp, cp of phi_z; sa, ca of phi_xy), so that a fit evaluating one lobe at many directions pays
