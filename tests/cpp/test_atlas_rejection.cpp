@@ -247,6 +247,7 @@ TEST(AtlasRejection, PathFieldsLeavingTheAtlasAreRefusedNamingTheField) {
       {json::json_pointer("/raywave/shading/factors/back"), "raywave.shading.factors.back"},
       {json::json_pointer("/raywave/shading/microfacet_albedo"),
        "raywave.shading.microfacet_albedo"},
+      {json::json_pointer("/raywave/shading/asg_integral"), "raywave.shading.asg_integral"},
       {json::json_pointer("/raywave/noise/files/refl"), "raywave.noise.files.refl"},
       {json::json_pointer("/raywave/diffraction/files/edge"), "raywave.diffraction.files.edge"}};
   for (const auto& [pointer, field] : refs)
