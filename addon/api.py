@@ -13,37 +13,23 @@ import os
 
 import bpy
 
-from . import bakery, colour_config, material as _material, node_mode
-from . import scene_needs as _scene_needs
+from . import bakery, colour_config, fibers, manifest as _manifest, material as _material
+from . import preferences, scene_needs as _scene_needs
 from .bakery import LoomBakeError as LoomError, read_manifest
+from .preferences import find_loom_bake
 
 __all__ = ["bake", "assign", "LoomError", "find_loom_bake", "presets", "last_assign",
            "scene_needs", "update_fibers", "remove_fibers"]
 
-_ADDON = __package__
-
 # Set by assign(): what it did (mode and why); read it with last_assign().
 _last: dict = {}
-
-
-def _prefs():
-    addon = bpy.context.preferences.addons.get(_ADDON) if _ADDON else None
-    return addon.preferences if addon is not None else None
-
-
-def find_loom_bake(loom_bake: str | None = None) -> str | None:
-    """loom-bake from the argument, the add-on preference, $LOOM_BAKE or PATH."""
-    if loom_bake:
-        return bakery.find_loom_bake(loom_bake)
-    p = _prefs()
-    return bakery.find_loom_bake(p.loom_bake_path if p is not None else None)
 
 
 def resolve_cache_dir(cache_dir: str | None = None) -> str:
     """The atlas cache: the argument, the add-on preference, or ~/.cache/loom/atlases."""
     if cache_dir:
         return os.path.abspath(os.path.expanduser(cache_dir))
-    p = _prefs()
+    p = preferences.get()
     if p is not None and p.cache_dir:
         return os.path.abspath(bpy.path.abspath(p.cache_dir))
     return bakery.default_cache_dir()
@@ -68,7 +54,7 @@ def bake(spec: str, quality: str = "preview", loom_bake: str | None = None,
     os.makedirs(cache, exist_ok=True)
     req = bakery.BakeRequest(spec=spec, quality=quality, loom_bake=exe, cache_dir=cache,
                              force=force, ocio_config=colour_config.staged(cache),
-                             validate=node_mode.atlas_problem)
+                             validate=_manifest.atlas_problem)
     status = bakery.bake_blocking(req, timeout=timeout)
     if status.state != "done":
         raise LoomError(status.message)
@@ -132,7 +118,6 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
     resolves them; call again after moving the camera. Returns what was done (see
     ``fibers.update_fibers``); raises LoomError with the reason, changing nothing, when it
     cannot (no Loom material, no UV map, a region over ``max_vertices``)."""
-    from . import fibers
     exe = find_loom_bake(loom_bake)
     if exe is None:
         raise LoomError("loom-bake not found (preferences, $LOOM_BAKE or PATH)")
@@ -143,5 +128,4 @@ def update_fibers(obj, scene=None, camera=None, loom_bake: str | None = None,
 
 def remove_fibers(obj) -> bool:
     """Remove the fibers update_fibers made for ``obj``; True if there were any."""
-    from . import fibers
     return fibers.remove_fibers(obj)

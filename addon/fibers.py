@@ -30,7 +30,7 @@ from array import array
 
 import bpy
 
-from . import bakery
+from . import bakery, preferences
 from . import material as _material
 from .bakery import LoomBakeError
 from .scene_needs import pixels_per_metre
@@ -478,8 +478,7 @@ def _render_pre(scene, *_args):
         print("loom: Fibers Follow Camera needs Render > Lock Interface for interactive renders; "
               "fibers not updated")
         return
-    from . import api
-    for r in update_all(scene, api.find_loom_bake()):
+    for r in update_all(scene, preferences.find_loom_bake()):
         print(f"loom: {r['reason']}")
 
 

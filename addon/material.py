@@ -15,7 +15,7 @@ import os
 import bpy
 from mathutils import Matrix
 
-from . import node_mode, node_mode_raywave, osl_paths, osl_source
+from . import manifest as _manifest, node_mode, node_mode_raywave, osl_paths, osl_source
 from .bakery import LoomBakeError, read_manifest
 
 OSL_TEXT_NAME = osl_source.SURFACE_SHADER
@@ -143,11 +143,11 @@ def check_tier(manifest: dict, atlas_dir: str) -> None:
     render something else under its name. Called before any material or node tree is touched."""
     tier = manifest.get("tier", "surface")
     if tier == "raywave":
-        problem = node_mode_raywave.atlas_problem(manifest)
+        problem = _manifest.raywave_problem(manifest)
         if problem:
             raise LoomBakeError(f"{atlas_dir}: ray-wave atlas: {problem}")
     elif tier != "surface":
-        raise LoomBakeError(f"{atlas_dir}: {node_mode.tier_problem(tier)}")
+        raise LoomBakeError(f"{atlas_dir}: {_manifest.tier_problem(tier)}")
 
 
 def shader_file(manifest: dict) -> str:
@@ -266,7 +266,7 @@ def _build_osl(mat, atlas_dir, manifest, scale):
         nt.nodes.remove(script)  # never leave a Script node that cannot run
         raise OSLBuildError("; ".join(messages) or "the shader did not compile")
     if manifest.get("tier", "surface") == "raywave":
-        params, values = node_mode_raywave.osl_parameters(manifest)
+        params, values = _manifest.raywave_osl_parameters(manifest)
         # Every ray-wave parameter matters (a texture left empty renders wrongly in silence):
         # a shader without one of them is not the shader this add-on was written for.
         missing = sorted(n for n in (*params, *values) if n not in script.inputs)
@@ -296,7 +296,7 @@ def _build_osl(mat, atlas_dir, manifest, scale):
     if "Scale" in script.inputs:
         script.inputs["Scale"].default_value = scale
     if "Aspect" in script.inputs:
-        script.inputs["Aspect"].default_value = node_mode.repeat_aspect(manifest)
+        script.inputs["Aspect"].default_value = _manifest.repeat_aspect(manifest)
     nt.links.new(script.outputs["BSDF"], out.inputs["Surface"])
 
 

@@ -41,15 +41,13 @@ import os
 import bpy
 
 from . import osl_source
+from .manifest import SURFACE_LUT as LUT, SURFACE_MAPS as MAPS, repeat_aspect
 from .node_texel_guard import texel_guard_geometry, texel_guard_horizon, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
                          mix, normalize, select, sqrt, sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Surface"
-MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
-        "spec_params", "horizon_0", "horizon_1")
-LUT = "closure_lut"
 
 # The headers' #defines that node mode uses; their values are read from the headers themselves
 # (osl_source.header_constants), so they live in one place.
@@ -69,25 +67,10 @@ TRANSCRIBED_FROM = {
 
 
 def constants(required=REQUIRED_CONSTANTS) -> dict[str, float]:
-    """The headers' constants; raise naming any of ``required`` that the headers lack."""
-    c = osl_source.header_constants()
-    missing = [k for k in required if k not in c]
-    if missing:
-        raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
-                           f"add-on's osl/ sources present? {osl_source.osl_dir()})")
-    return c
+    return osl_source.required_constants(required)
 
 
 # ======================================================================= closure_mapping.h
-
-
-def repeat_aspect(manifest) -> float:
-    """Lx / Ly of the weave repeat (manifest repeat.size_um): the shader's Aspect."""
-    try:
-        lx, ly = (float(v) for v in manifest["repeat"]["size_um"])
-        return lx / ly if lx > 0 and ly > 0 else 1.0
-    except (KeyError, TypeError, ValueError):
-        return 1.0
 
 
 def surface_glossy_normal(t: V) -> V:
@@ -236,43 +219,6 @@ def load_atlas_image(atlas_dir: str, manifest: dict, name: str, label: str):
 
 
 # ======================================================================= the group
-
-
-def tier_problem(tier: str, what: str = "atlas") -> str:
-    """Why an atlas (or spec) of a model tier other than the surface one cannot be shaded here
-    (yet)."""
-    return (f"a \"{tier}\" {what}: Loom cannot shade the {tier} tier in Blender yet "
-            f"(bake the spec with \"model\": {{\"tier\": \"surface\"}})")
-
-
-def atlas_problem(atlas_dir: str) -> str | None:
-    """None if node mode can read this atlas, else why not (missing maps, a LUT layout other
-    than the shared headers')."""
-    import json
-
-    try:
-        with open(os.path.join(atlas_dir, "manifest.json"), encoding="utf-8") as f:
-            manifest = json.load(f)
-        textures = manifest["textures"]
-    except (OSError, ValueError, KeyError) as exc:
-        return f"unreadable manifest: {exc}"
-    tier = manifest.get("tier", "surface")
-    if tier == "raywave":
-        from . import node_mode_raywave
-
-        return node_mode_raywave.atlas_problem(manifest)
-    if tier != "surface":
-        return tier_problem(tier)
-    missing = [m for m in (*MAPS, LUT) if m not in textures]
-    if missing:
-        return f"maps missing: {', '.join(missing)}"
-    K = constants()
-    n = int(K["LOOM_CLOSURE_LUT_SIZE"])
-    want = [int(K["LOOM_LUT_PANELS"]) * n, 2 * n * int(K["LOOM_LUT_SLICES"])]
-    got = list(textures[LUT].get("size", []))
-    if got != want:
-        return f"closure LUT is {got}, the shaders expect {want}"
-    return None
 
 
 def group_name(manifest: dict) -> str:

@@ -2,9 +2,11 @@
 built-in nodes.
 
 The same transcription rules as the surface tier (``node_mode.py``, whose docstring explains the
-atlas images, the tangent frame and the closure weights in Color inputs): the functions below
-transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by line through
-``nodes_expr``; each names the header function it mirrors. What is particular to this tier:
+atlas images, the tangent frame and the closure weights in Color inputs): the groups below are
+built from the line-by-line transcriptions of the headers in ``node_raywave_lobes.py``
+(``raywave_lobes.h``, ``asg.h``, ``double_layer_factors.h``) and ``node_wave.py``
+(``diffraction_*.h``, ``speckle_noise.h``); what the atlas holds is read by ``manifest.py``.
+What is particular to this tier:
 
 * Lobe tables (ply_high_*, ply_refl_*), their tints (ply_tint_*), the double-layer factors
   (layer_factors_*) and the microfacet albedo LUT are Image Textures with EXTEND; the node images
@@ -41,25 +43,29 @@ transcribe ``raywave_lobes.h``, ``double_layer_factors.h`` and ``asg.h`` line by
 
 from __future__ import annotations
 
-import math
 import os
 
 import bpy
 
-from . import node_mode, node_texel_guard, node_visibility
-from .nodes_expr import (Builder, acos, asin, atan2, clamp, cos, cross, dot, fabs,
-                         floor, length, log, max_, min_, normalize, select, sin, sqrt,
+from . import manifest as _manifest, node_mode, node_texel_guard, node_visibility
+from .node_raywave_lobes import (asg_frame, asg_integral_from_lut, asg_integral_lut_uv,
+                                 asg_node_coord, asg_node_uv, asg_tint_uv, double_layer_uv,
+                                 microfacet_albedo_uv, raywave_energy_budget,
+                                 raywave_layer_diffuse_weight, raywave_layer_translucent_weight,
+                                 raywave_lobe_closures, raywave_lobe_energy, raywave_lobe_forward,
+                                 raywave_lobe_weights, raywave_ply_space,
+                                 raywave_residual_diffuse_weight,
+                                 raywave_residual_translucent_weight, raywave_residual_uv)
+from .node_wave import (diffraction_cell_row, diffraction_gap_offset, diffraction_light_direction,
+                        diffraction_lobe_closure, diffraction_lobe_weight, diffraction_sample_uv,
+                        diffraction_split, diffraction_stratum, diffraction_table_s,
+                        diffraction_tile_pick, noise_lobe_uv, noise_pick)
+from .nodes_expr import (Builder, cos, cross, dot, floor, max_, normalize, select, sin, sqrt,
                          sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Ray-wave"
 SHADER = "loom_cloth_raywave.osl"
-MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
-# The lobe tables' layout this module reads: the manifest's raywave.yarns.<yarn>.node_layout, as
-# loom-bake writes it (baker/include/loom/ply_tables.h: kAsgNodeLayout).
-NODE_LAYOUT = "lobe-major/node-scales"
-# The double-layer factors this module reads: the manifest's raywave.shading.factors_layout
-# (baker/include/loom/raywave_bsdf.h: kLayerFactorsLayout; double_layer_factors.h).
-FACTORS_LAYOUT = "k_b,k_f"
+MAPS = _manifest.RAYWAVE_MAPS
 
 REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYWAVE_ETA",
                       "LOOM_RAYWAVE_MIN_ALBEDO", "LOOM_RAYWAVE_MIN_COS",
@@ -72,752 +78,15 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_DOUBLE_LAYER_BLOCKS")
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
-# checks both). texel_guard.h and visibility.h: node_texel_guard.py, node_visibility.py.
+# checks it). The headers: node_raywave_lobes.py, node_wave.py, node_texel_guard.py,
+# node_visibility.py.
 TRANSCRIBED_FROM = {
-    "include/loom/raywave_lobes.h": "ca74348eaa1d3868",
-    "include/loom/double_layer_factors.h": "f779eff78c2ea96c",
-    "include/loom/asg.h": "8e66624946a2b7e5",
-    "include/loom/diffraction_table.h": "452b37e1478a3fd5",
-    "include/loom/diffraction_sampling.h": "4552302033af31ad",
-    "include/loom/speckle_noise.h": "db12339f3a287d00",
     "loom_cloth_raywave.osl": "407aed919a31d683",
 }
 
 
 def constants() -> dict[str, float]:
     return node_mode.constants(REQUIRED_CONSTANTS)
-
-
-# ======================================================================= asg.h
-
-
-def asg_frame(theta_z, phi_z, phi_xy):
-    """asg.h: asg_frame(theta_z, phi_z, phi_xy, x, y, z) (Eq. S.2).
-
-        z = (ct cp, ct sp, st); x0 = (-sp, cp, 0); y0 = (-st cp, -st sp, ct)
-        x = ca x0 - sa y0;  y = sa x0 + ca y0
-    """
-    st, ct, sp, cp = sin(theta_z), cos(theta_z), sin(phi_z), cos(phi_z)
-    z = vec(ct * cp, ct * sp, st)
-    x0 = vec(-sp, cp, 0.0)
-    y0 = vec(-st * cp, -st * sp, ct)
-    sa, ca = sin(phi_xy), cos(phi_xy)
-    return x0 * ca - y0 * sa, x0 * sa + y0 * ca, z
-
-
-def asg_integral_lut_coord(mu, K):
-    """asg.h: asg_integral_lut_coord(mu) = log(1 + clamp(mu, 0, MU_MAX)) / log(1 + MU_MAX)."""
-    top = K["LOOM_ASG_MU_MAX"]
-    return log(1.0 + clamp(mu, 0.0, top)) * (1.0 / math.log(1.0 + top))
-
-
-def asg_integral_lut_uv(mu1, mu2, K):
-    """asg.h: asg_integral_lut_uv(mu1, mu2) -> (s, tv) = ((0.5 + coord(mu) (n - 1)) / n),
-    n = LOOM_ASG_INTEGRAL_LUT_SIZE."""
-    n = K["LOOM_ASG_INTEGRAL_LUT_SIZE"]
-    return ((0.5 + asg_integral_lut_coord(mu1, K) * (n - 1.0)) * (1.0 / n),
-            (0.5 + asg_integral_lut_coord(mu2, K) * (n - 1.0)) * (1.0 / n))
-
-
-def asg_integral_from_lut(h, mu1, mu2, c, K):
-    """asg.h: asg_integral_from_lut(h, mu1, mu2, c) = c > 0 ? c pi h / sqrt((1 + m1) (1 + m2))
-    : 0, m = clamp(mu, 0, MU_MAX)."""
-    top = K["LOOM_ASG_MU_MAX"]
-    m1 = clamp(mu1, 0.0, top)
-    m2 = clamp(mu2, 0.0, top)
-    return select(c > 0.0, c * math.pi * h / sqrt((1.0 + m1) * (1.0 + m2)), 0.0)
-
-
-# ======================================================================= raywave_lobes.h
-
-
-def raywave_any_normal(n):
-    """raywave_lobes.h: raywave_any_normal(n).
-
-        a = |n.z| > 0.9 ? (1,0,0) : (0,0,1);  return normalize(a - n (a.n))
-    """
-    a = select(fabs(n.z) > 0.9, (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-    return normalize(a - n * dot(a, n))
-
-
-def raywave_ply_space(V_, t, np_):
-    """raywave_lobes.h: raywave_ply_space(V, t, np, xp, yp, theta_i, h) -> (xp, yp, theta_i, h).
-
-        n_perp = normalize(np - t (np.t)); if (|n_perp| < 0.5) n_perp = raywave_any_normal(t)
-        v_perp = V - t (V.t); lv = |v_perp|; yp = lv > 1e-6 ? v_perp / lv : n_perp
-        xp = yp x t; theta_i = asin(clamp(V.t, -1, 1)); h = clamp(n_perp.xp, -1, 1)
-    """
-    n_perp = normalize(np_ - t * dot(np_, t))
-    n_perp = select(length(n_perp) < 0.5, raywave_any_normal(t), n_perp)
-    v_perp = V_ - t * dot(V_, t)
-    lv = length(v_perp)
-    yp = select(lv > 1e-6, v_perp / lv, n_perp)
-    xp = cross(yp, t)
-    theta_i = asin(clamp(dot(V_, t), -1.0, 1.0))
-    h = clamp(dot(n_perp, xp), -1.0, 1.0)
-    return xp, yp, theta_i, h
-
-
-def raywave_from_ply(a, xp, yp, t):
-    """raywave_lobes.h: raywave_from_ply(a, xp, yp, t) = a.x xp + a.y yp + a.z t."""
-    return xp * a.x + yp * a.y + t * a.z
-
-
-def asg_node_coord(x, lo, hi, n):
-    """raywave_lobes.h: asg_node_coord(x, lo, hi, n) = 0.5 (clamp(x, lo, hi) - lo) / (hi - lo)
-    (n - 1) (the header's NaN guard is max(u, 0) for finite inputs)."""
-    u = (clamp(x, lo, hi) - lo) / (hi - lo) * (n - 1)
-    return 0.5 * max_(u, 0.0)
-
-
-def asg_node_uv(fi, fj, part, lobe, lobes, rows, cols, K):
-    """raywave_lobes.h: asg_node_uv -> (s, tv).
-
-        i = clamp(fi, 0, rows - 1); j = clamp(fj, 0, cols - 1)
-        s = (asg_node_column(part, lobe, 0) + j + 0.5) / (PARTS lobes cols); tv = (i + 0.5) / rows
-    asg_node_column(part, lobe, j) = (part lobes + lobe) cols + j.
-    """
-    i = clamp(fi, 0.0, rows - 1.0)
-    j = clamp(fj, 0.0, cols - 1.0)
-    col0 = (part * lobes + lobe) * cols
-    s = (j + (col0 + 0.5)) / (K["LOOM_RAYWAVE_PARTS"] * lobes * cols)
-    return s, (i + 0.5) / rows
-
-
-def asg_tint_uv(fi, fj, lobe, lobes, rows, cols):
-    """raywave_lobes.h: asg_tint_uv -> (s, tv).
-
-        i = clamp(fi, 0, rows - 1); j = clamp(fj, 0, cols - 1)
-        s = (lobe cols + j + 0.5) / (lobes cols); tv = (i + 0.5) / rows
-    """
-    i = clamp(fi, 0.0, rows - 1.0)
-    j = clamp(fj, 0.0, cols - 1.0)
-    return (j + (lobe * cols + 0.5)) / (lobes * cols), (i + 0.5) / rows
-
-
-def asg_lobe_reflection(V_, z, x, y, mu1, mu2, K):
-    """raywave_lobes.h: asg_lobe_reflection(V, z, x, y, mu1, mu2) -> (N, T, ax, ay).
-
-        N = normalize(V + z) (or (0,0,1) if |N| < 0.5); vn = V.N
-        g_a = P_N(2 vn a + 2 (N.a) V); e1 = normalize(P_N x) (or raywave_any_normal(N)); e2 = N x e1
-        m = clamp(mu, 0, 1e6) (the header's NaN guard, for finite inputs)
-        M = [[a11, a12], [a12, a22]] in (e1, e2); psi = atan2(2 a12, a11 - a22) / 2
-        T = cos psi e1 + sin psi e2;  a = clamp(1 / sqrt(max(mean +- dev, 1e-12)), MIN_ALPHA, 1)
-    """
-    N = normalize(V_ + z)
-    N = select(length(N) < 0.5, (0.0, 0.0, 1.0), N)
-    vn = dot(V_, N)
-    gx = x * (2.0 * vn) + V_ * (2.0 * dot(N, x))
-    gy = y * (2.0 * vn) + V_ * (2.0 * dot(N, y))
-    gx = gx - N * dot(gx, N)
-    gy = gy - N * dot(gy, N)
-    e1 = normalize(x - N * dot(x, N))
-    e1 = select(length(e1) < 0.5, raywave_any_normal(N), e1)
-    e2 = cross(N, e1)
-    m1 = clamp(mu1, 0.0, 1e6)
-    m2 = clamp(mu2, 0.0, 1e6)
-    x1, x2, y1, y2 = dot(gx, e1), dot(gx, e2), dot(gy, e1), dot(gy, e2)
-    a11 = m1 * x1 * x1 + m2 * y1 * y1
-    a12 = m1 * x1 * x2 + m2 * y1 * y2
-    a22 = m1 * x2 * x2 + m2 * y2 * y2
-    mean = 0.5 * (a11 + a22)
-    d = a11 - a22
-    dev = sqrt(0.25 * d * d + a12 * a12)
-    psi = 0.5 * atan2(2.0 * a12, d)
-    T = e1 * cos(psi) + e2 * sin(psi)
-    lo = K["LOOM_RAYWAVE_MIN_ALPHA"]
-    ax = clamp(1.0 / sqrt(max_(mean + dev, 1e-12)), lo, 1.0)
-    ay = clamp(1.0 / sqrt(max_(mean - dev, 1e-12)), lo, 1.0)
-    return N, T, ax, ay
-
-
-def asg_lobe_refraction_frame(V_, z, K):
-    """raywave_lobes.h: asg_lobe_refraction_frame(V, z, N, magnification) -> (N, mag, ok).
-
-        hv = -(ETA z + V); m = |hv|; m < 1e-6: N = (0,0,1), mag = 1, 0
-        N = hv / m; mag = ETA / m
-        ok = N.V >= MIN_COS && N.z > 0 && R.z >= min(0.9 V.z, 0.01),  R = 2 (N.V) N - V
-    """
-    eta = K["LOOM_RAYWAVE_ETA"]
-    hv = -(z * eta + V_)
-    m = length(hv)
-    tiny = m < 1e-6
-    N = select(tiny, (0.0, 0.0, 1.0), hv / m)
-    mag = select(tiny, 1.0, eta / m)
-    nv = dot(N, V_)
-    R = N * (2.0 * nv) - V_
-    ok = ((1.0 - tiny) * (1.0 - (nv < K["LOOM_RAYWAVE_MIN_COS"])) * (N.z > 0.0)
-          * (1.0 - (R.z < min_(0.9 * V_.z, 0.01))))
-    return N, mag, ok
-
-
-def asg_refraction_alpha(mu1, mu2, mag, N, z, K):
-    """raywave_lobes.h: asg_refraction_alpha(mu1, mu2, mag, N, z) =
-    clamp(mag sqrt(|N.z|) / sqrt(sqrt(m1 m2)), MIN_ALPHA, 1), m = mu >= 1e-6 ? mu : 1e-6."""
-    mu = sqrt(max_(mu1, 1e-6) * max_(mu2, 1e-6))
-    return clamp(mag * sqrt(fabs(dot(N, z))) / sqrt(mu), K["LOOM_RAYWAVE_MIN_ALPHA"], 1.0)
-
-
-def microfacet_albedo_uv(cos_nv, alpha, K):
-    """raywave_lobes.h: microfacet_albedo_uv -> (s, tv) = ((0.5 + clamp(cos, 0, 1) (n - 1)) / n,
-    (0.5 + sqrt(clamp(alpha, 0, 1)) (n - 1)) / n), n = LOOM_MICROFACET_ALBEDO_SIZE."""
-    n = K["LOOM_MICROFACET_ALBEDO_SIZE"]
-    s = (0.5 + clamp(cos_nv, 0.0, 1.0) * (n - 1.0)) / n
-    tv = (0.5 + sqrt(clamp(alpha, 0.0, 1.0)) * (n - 1.0)) / n
-    return s, tv
-
-
-def asg_microfacet_weight(integral, albedo, K):
-    """raywave_lobes.h: asg_microfacet_weight = !(albedo >= 0) || !(integral > 0) ? 0 :
-    integral / max(albedo, MIN_ALBEDO)."""
-    ok = (integral > 0.0) * (1.0 - (albedo < 0.0))
-    return select(ok, integral / max_(albedo, K["LOOM_RAYWAVE_MIN_ALBEDO"]), 0.0)
-
-
-def raywave_smooth_unit(x):
-    """raywave_lobes.h: raywave_smooth_unit(x) = c^2 (3 - 2 c), c = clamp(x, 0, 1) (NaN: 0, as
-    Blender's Clamp node gives)."""
-    c = clamp(x, 0.0, 1.0)
-    return c * c * (3.0 - 2.0 * c)
-
-
-def raywave_reflection_share(zz, band):
-    """raywave_lobes.h: raywave_reflection_share(zz, band) =
-    raywave_smooth_unit(0.5 (zz + band) / band)."""
-    return raywave_smooth_unit((zz + band) * (0.5 / band))
-
-
-def asg_lobe_refraction_share(V_, N, ok, band, K):
-    """raywave_lobes.h: asg_lobe_refraction_share(V, N, ok, band).
-
-        !ok: 0;  nv = N.V;  R = 2 nv N - V
-        smooth((nv - MIN_COS) / band) smooth(N.z / band) smooth((R.z - min(0.9 V.z, 0.01)) / band)
-    """
-    nv = dot(N, V_)
-    R = N * (2.0 * nv) - V_
-    a = raywave_smooth_unit((nv - K["LOOM_RAYWAVE_MIN_COS"]) * (1.0 / band))
-    b = raywave_smooth_unit(N.z * (1.0 / band))
-    c = raywave_smooth_unit((R.z - min_(0.9 * V_.z, 0.01)) * (1.0 / band))
-    return ok * a * b * c
-
-
-def raywave_lobe_closures(V_, xp, yp, t, p0, mu1, p1, K):
-    """raywave_lobes.h: raywave_lobe_closures(V, xp, yp, t, p0, mu1, p1, z, Nr, Tr, axr, ayr, Nt,
-    at, b_refl, b_refr).
-
-        (x, y, z) = asg_frame(p0) in the tangent frame (raywave_from_ply)
-        b_refl = raywave_reflection_share(z.z, SIDE_BAND)
-        (Nr, Tr, axr, ayr) = asg_lobe_reflection (where b_refl > 0)
-        (Nt, mag, ok) = asg_lobe_refraction_frame (where b_refl < 1)
-        b_refr = asg_lobe_refraction_share(V, Nt, ok, REFRACTION_BAND); at = asg_refraction_alpha
-    Both frames are computed everywhere: where the header keeps a frame's defaults its closure's
-    share is 0, so its weight is 0 and Cycles allocates no closure. (The header's b_refr is 0
-    where b_refl = 1; here it need not be, but every weight it enters is multiplied by
-    1 - b_refl.)
-    Returns (z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr)."""
-    lx, ly, lz = asg_frame(p0.x, p0.y, p0.z)
-    z = raywave_from_ply(lz, xp, yp, t)
-    x = raywave_from_ply(lx, xp, yp, t)
-    y = raywave_from_ply(ly, xp, yp, t)
-    Nr, Tr, axr, ayr = asg_lobe_reflection(V_, z, x, y, mu1, p1.x, K)
-    Nt, mag, ok = asg_lobe_refraction_frame(V_, z, K)
-    at = asg_refraction_alpha(mu1, p1.x, mag, Nt, z, K)
-    b_refl = raywave_reflection_share(z.z, K["LOOM_RAYWAVE_SIDE_BAND"])
-    b_refr = asg_lobe_refraction_share(V_, Nt, ok, K["LOOM_RAYWAVE_REFRACTION_BAND"], K)
-    return z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr
-
-
-def raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open_, vis_v, vis_z, k_f, s,
-                         b_refl, b_refr, K):
-    """raywave_lobes.h: raywave_lobe_weights(integral, albedo_r, albedo_t, tint, open, vis_v,
-    vis_z, k_f, s, b_refl, b_refr, w_refl, w_refr, w_transl), with
-    raywave_lobe_weight(kind, ...):
-
-        kind 0: asg_microfacet_weight(integral, albedo) open vis_v vis_z tint
-        kind 2: asg_microfacet_weight(integral, albedo) open (1 - s) tint k_f
-        kind 1: integral open (1 - s) tint k_f
-        w_refl = b_refl kind 0 (albedo_r);  w_refr = (1 - b_refl) b_refr kind 2 (albedo_t)
-        w_transl = (1 - b_refl) (1 - b_refr) kind 1
-    Returns (w_refl, w_refr, w_transl)."""
-    mw_r = asg_microfacet_weight(integral, albedo_r, K)
-    mw_t = asg_microfacet_weight(integral, albedo_t, K)
-    w_refl = tint * (b_refl * (mw_r * open_ * vis_v * vis_z))
-    fwd = tint * k_f
-    far = 1.0 - b_refl
-    w_refr = fwd * ((far * b_refr) * (mw_t * (open_ * (1.0 - s))))
-    w_transl = fwd * ((far * (1.0 - b_refr)) * (integral * (open_ * (1.0 - s))))
-    return w_refl, w_refr, w_transl
-
-
-def raywave_lobe_forward(integral, tint, b_refl):
-    """raywave_lobes.h: raywave_lobe_forward(integral, tint, b_refl) = integral (1 - b_refl) tint."""
-    return tint * (integral * (1.0 - b_refl))
-
-
-def raywave_lobe_energy(integral, tint, open_, vis_v, vis_z, k_f, s, b_refl):
-    """raywave_lobes.h: raywave_lobe_energy(integral, tint, open, vis_v, vis_z, k_f, s, b_refl)
-    = integral open tint (b_refl vis_v vis_z + (1 - b_refl) (1 - s) k_f)."""
-    up = b_refl * vis_v * vis_z
-    return tint * (k_f * ((1.0 - b_refl) * (1.0 - s)) + vec(up, up, up)) * (integral * open_)
-
-
-def raywave_energy_budget(x, used, open_):
-    """raywave_lobes.h: raywave_energy_budget(x, used, open): per channel c,
-    min(1, max(open - used[c], 0) / x[c]) where x[c] > 0, else 1. (Math MINIMUM is fminf: a
-    NaN or Inf quotient on the side select does not take gives 1, not NaN.)"""
-    k = []
-    for c in ("x", "y", "z"):
-        xc, uc = getattr(x, c), getattr(used, c)
-        k.append(select(xc > 0.0, min_(1.0, max_(open_ - uc, 0.0) / xc), 1.0))
-    return vec(*k)
-
-
-# ======================================================================= diffraction_table.h,
-#                                                                         diffraction_sampling.h
-
-
-def diffraction_obliquity(xi_i, xi_o):
-    """diffraction_table.h: diffraction_obliquity(xi_i, xi_o) = (|xi_i.z| + |xi_o.z|)^2 / 4."""
-    a = fabs(xi_i.z) + fabs(xi_o.z)
-    return 0.25 * a * a
-
-
-def diffraction_table_s(t, K):
-    """diffraction_table.h: diffraction_table_s(t) = S_MAX t^2."""
-    return K["LOOM_DIFFRACTION_S_MAX"] * t * t
-
-
-def diffraction_gap_offset(coord, yarns, gap_fraction):
-    """diffraction_sampling.h: diffraction_gap_offset(coord, yarns, gap_fraction).
-
-        x = coord yarns;  c = x - floor(x + 0.5);  min(|c| 2 / max(gap_fraction, 1e-6), 1)"""
-    x = coord * float(yarns)
-    c = x - floor(x + 0.5)
-    return min_(fabs(c) * (2.0 / max(gap_fraction, 1e-6)), 1.0)
-
-
-def diffraction_tile_coord(o, n):
-    """diffraction_sampling.h: diffraction_tile_coord(o, n) = (n - 1) (1 - sqrt(1 - clamp(o, 0, 1)))
-    (NaN: 0, which Blender's Clamp node already gives)."""
-    return float(n - 1) * (1.0 - sqrt(1.0 - clamp(o, 0.0, 1.0)))
-
-
-def diffraction_tile_pick(o, n, r):
-    """diffraction_sampling.h: diffraction_tile_pick(o, n, r).
-
-        n < 2: 0;  f = diffraction_tile_coord(o, n);  i = floor(f);  i >= n - 1: n - 1
-        r < f - i: i + 1;  else i"""
-    if n < 2:
-        return 0.0
-    f = diffraction_tile_coord(o, n)
-    i = floor(f)
-    return select(i > n - 1.5, float(n - 1), select(r < f - i, i + 1.0, i))
-
-
-def diffraction_stratum(r, k, step):
-    """diffraction_sampling.h: diffraction_stratum(r, k, step) = x - floor(x), x = r + k step."""
-    x = r + k * step
-    return x - floor(x)
-
-
-def diffraction_split(r):
-    """diffraction_sampling.h: diffraction_split(r, sgn) -> (u, sgn).
-
-        sgn = r < 0.5 ? -1 : 1;  u = clamp(|2 r - 1|, 0, 1)"""
-    return clamp(fabs(2.0 * r - 1.0), 0.0, 1.0), select(r < 0.5, -1.0, 1.0)
-
-
-def diffraction_sample_uv(u, row, tx, ty, tiles_x, tiles_y, size, K):
-    """diffraction_sampling.h: diffraction_sample_uv(u, row, tx, ty, tiles_x, tiles_y, size) ->
-    (s, tv).
-
-        k = clamp(u, 0, 1) (ICDF - 1) + 0.5;  s = (tx ICDF + k) / (tiles_x ICDF)
-        tv = (ty (size + 1) + row + 0.5) / (tiles_y (size + 1))"""
-    icdf = K["LOOM_DIFFRACTION_ICDF_SIZE"]
-    k = clamp(u, 0.0, 1.0) * (icdf - 1.0) + 0.5
-    s = (tx * icdf + k) * (1.0 / (tiles_x * icdf))
-    tv = (ty * (size + 1.0) + row + 0.5) * (1.0 / (tiles_y * (size + 1.0)))
-    return s, tv
-
-
-def diffraction_cell_row(t_y, size):
-    """diffraction_sampling.h: diffraction_cell_row(t_y, size) =
-    1 + max(0, min(floor(clamp(t_y, 0, 1) (size - 1)), size - 2)) (NaN: row 1, as the Clamp
-    node gives)."""
-    j = floor(clamp(t_y, 0.0, 1.0) * (size - 1.0))
-    return 1.0 + max_(0.0, min_(j, size - 2.0))
-
-
-def diffraction_light_direction(V_, s_x, s_y):
-    """diffraction_sampling.h: diffraction_light_direction(V, s_x, s_y, L) -> (L, ok).
-
-        lx = s_x - V.x;  ly = s_y - V.y;  r2 = lx^2 + ly^2
-        ok = r2 < 1;  L = ok ? (lx, ly, -sqrt(1 - r2)) : (0, 0, -1)"""
-    lx = s_x - V_.x
-    ly = s_y - V_.y
-    r2 = lx * lx + ly * ly
-    ok = r2 < 1.0
-    L = select(ok, vec(lx, ly, -sqrt(max_(1.0 - r2, 0.0))), (0.0, 0.0, -1.0))
-    return L, ok
-
-
-def diffraction_lobe_weight(V_, L, p_out, albedo, K):
-    """diffraction_sampling.h: diffraction_lobe_weight(V, L, p_out, albedo) =
-    p_out obliquity(L, V) / max(|L.z|, MIN_COS) / (max(albedo, MIN_ALBEDO) SAMPLES)."""
-    w = p_out * diffraction_obliquity(L, V_) / max_(fabs(L.z), K["LOOM_DIFFRACTION_MIN_COS"])
-    return w / (max_(albedo, K["LOOM_RAYWAVE_MIN_ALBEDO"]) * K["LOOM_DIFFRACTION_SAMPLES"])
-
-
-def diffraction_lobe_closure(V_, L, K):
-    """diffraction_sampling.h: diffraction_lobe_closure(V, L, N, alpha) -> (N, alpha, ok).
-
-        mu = 0.5 / KERNEL_RAD^2;  ok = asg_lobe_refraction_frame(V, L, N, mag)
-        alpha = asg_refraction_alpha(mu, mu, mag, N, L)"""
-    mu = 0.5 / (K["LOOM_DIFFRACTION_KERNEL_RAD"] ** 2)
-    N, mag, ok = asg_lobe_refraction_frame(V_, L, K)
-    return N, asg_refraction_alpha(mu, mu, mag, N, L, K), ok
-
-
-# ======================================================================= speckle_noise.h
-
-
-def _mod(x, y):
-    """OSL's mod(x, y) = x - y floor(x / y) (y a positive constant)."""
-    return x - floor(x * (1.0 / y)) * y
-
-
-def noise_hash_round(x, a, c, K):
-    """speckle_noise.h: noise_hash_round(x, a, c) = mod(a mod(x, p) + c, p), p = HASH_MOD."""
-    p = K["LOOM_NOISE_HASH_MOD"]
-    return _mod(_mod(x, p) * a + c, p)
-
-
-def noise_hash(ply_id, segment, K):
-    """speckle_noise.h: noise_hash(ply_id, segment) (exact integers in float, as in OSL).
-
-        a = floor(clamp(id, 0, 1) 4095);  b = mod(floor(segment), 4096)
-        h = round(a 16 + mod(b, 16), 251, 17);  h = round(h + floor(b / 16) 97, 223, 41)
-        h = round(h, 199, 7);  h = round(h, 241, 113);  h / HASH_MOD"""
-    a = floor(clamp(ply_id, 0.0, 1.0) * 4095.0)
-    b = _mod(floor(segment), 4096.0)
-    h = noise_hash_round(a * 16.0 + _mod(b, 16.0), 251.0, 17.0, K)
-    h = noise_hash_round(h + floor(b * (1.0 / 16.0)) * 97.0, 223.0, 41.0, K)
-    h = noise_hash_round(h, 199.0, 7.0, K)
-    h = noise_hash_round(h, 241.0, 113.0, K)
-    return h * (1.0 / K["LOOM_NOISE_HASH_MOD"])
-
-
-def noise_pick(ply_id, along, instances, K):
-    """speckle_noise.h: noise_pick(ply_id, along, instances, instance, phi_shift) ->
-    (instance, phi_shift).
-
-        h = noise_hash(id, floor(clamp(along, 0, 1) SEGMENTS));  x = h max(n, 1)
-        instance = min(floor(x), max(n, 1) - 1);  phi_shift = x - instance"""
-    n = max(int(instances), 1)
-    h = noise_hash(ply_id, floor(clamp(along, 0.0, 1.0) * K["LOOM_NOISE_SEGMENTS_PER_REPEAT"]), K)
-    x = h * float(n)
-    inst = min_(floor(x), float(n - 1))
-    return inst, x - inst
-
-
-def noise_memory_effect_direction(wi, wo):
-    """speckle_noise.h: noise_memory_effect_direction(wi, wo) (Eq. S.40).
-
-        s = normalize(wi) + normalize(wo);  l = |s|;  l <= 1e-6: normalize(wo)
-        H = s / l;  2 (n.H) H - n,  n = (0, 1, 0)"""
-    s = normalize(wi) + normalize(wo)
-    l = length(s)
-    H = s / l
-    mirrored = H * (2.0 * H.y) - vec(0.0, 1.0, 0.0)
-    return select(l > 1e-6, mirrored, normalize(wo))
-
-
-def noise_tile_uv(w, phi_shift, instance, instances):
-    """speckle_noise.h: noise_tile_uv(w, phi_shift, instance, instances, u, v) -> (u, v), with
-    noise_angles (theta = asin(clamp(n.z, -1, 1)), phi = atan2(n.y, n.x), n = normalize(w)).
-
-        u = mod((phi + pi) / (2 pi) + phi_shift, 1);  t = clamp((theta + pi/2) / pi, 0, 1)
-        v = (instance + t) / max(instances, 1)"""
-    n = normalize(w)
-    theta = asin(clamp(n.z, -1.0, 1.0))
-    phi = atan2(n.y, n.x)
-    x = (phi + math.pi) * (1.0 / (2.0 * math.pi)) + phi_shift
-    u = x - floor(x)
-    t = clamp((theta + 0.5 * math.pi) * (1.0 / math.pi), 0.0, 1.0)
-    return u, (instance + t) * (1.0 / max(int(instances), 1))
-
-
-def noise_level_blur(l):
-    """speckle_noise.h: noise_level_blur(l): 0, 0.015, 0.05, 0.15 rad."""
-    return (0.0, 0.015, 0.05, 0.15)[min(max(l, 0), 3)]
-
-
-def noise_level_coord(sigma, K):
-    """speckle_noise.h: noise_level_coord(sigma): linear in sigma between the levels' blurs,
-    clamped to [0, LEVELS - 1] (sigma >= the last blur: LEVELS - 1)."""
-    levels = int(K["LOOM_NOISE_LEVELS"])
-    c = 0.0
-    for l in range(levels - 1):
-        a, b_ = noise_level_blur(l), noise_level_blur(l + 1)
-        inside = (1.0 - (sigma < a)) * (sigma < b_)
-        c = c + select(inside, l + (sigma - a) * (1.0 / (b_ - a)), 0.0)
-    return select(sigma < noise_level_blur(levels - 1), c, float(levels - 1))
-
-
-def noise_lobe_sigma(mu1, mu2):
-    """speckle_noise.h: noise_lobe_sigma(mu1, mu2) = 1 / sqrt(2 sqrt(m1 m2)),
-    m = clamp(mu, 1e-6, 1e12)."""
-    m = sqrt(clamp(mu1, 1e-6, 1e12) * clamp(mu2, 1e-6, 1e12))
-    return 1.0 / sqrt(2.0 * m)
-
-
-def noise_lobe_uv(z, wi, refl, mu1, mu2, instance, phi_shift, instances, K):
-    """speckle_noise.h: noise_lobe_uv(z, wi, refl, mu1, mu2, instance, phi_shift, instances,
-    u, v0, v1, t) -> (u, v0, v1, t).
-
-        w = refl ? noise_memory_effect_direction(wi, z) : z;  (u, v) = noise_tile_uv(w, ...)
-        c = noise_level_coord(noise_lobe_sigma(mu1, mu2));  l = min(floor(c), LEVELS - 2)
-        t = c - l;  v0 = (l + v) / LEVELS;  v1 = (l + 1 + v) / LEVELS"""
-    levels = int(K["LOOM_NOISE_LEVELS"])
-    w = noise_memory_effect_direction(wi, z) if refl else z
-    u, v = noise_tile_uv(w, phi_shift, instance, instances)
-    c = noise_level_coord(noise_lobe_sigma(mu1, mu2), K)
-    l = min_(floor(c), float(levels - 2))
-    v = clamp(v, 0.0, 1.0)
-    return u, (l + v) * (1.0 / levels), (l + 1.0 + v) * (1.0 / levels), c - l
-
-
-# ======================================================================= double_layer_factors.h
-
-
-def raywave_residual_uv(theta_i, h, theta_lo, theta_hi, m, n, side):
-    """raywave_lobes.h: raywave_residual_uv(theta_i, h, theta_lo, theta_hi, m, n, side) -> (s, tv).
-
-        fi = 2 asg_node_coord(theta_i, lo, hi, m);  fj = 2 asg_node_coord(h, -1, 1, n)
-        s = (side n + fj + 0.5) / (2 n);  tv = (fi + 0.5) / m"""
-    fi = 2.0 * asg_node_coord(theta_i, theta_lo, theta_hi, m)
-    fj = 2.0 * asg_node_coord(h, -1.0, 1.0, n)
-    return (fj + (side * n + 0.5)) * (1.0 / (2.0 * n)), (fi + 0.5) * (1.0 / m)
-
-
-def raywave_residual_diffuse_weight(e_b, open_, vis_v):
-    """raywave_lobes.h: raywave_residual_diffuse_weight = open vis_v e_b."""
-    return e_b * (open_ * vis_v)
-
-
-def raywave_residual_translucent_weight(e_f, open_, k_f, s_blend):
-    """raywave_lobes.h: raywave_residual_translucent_weight = open (1 - s) k_f e_f."""
-    return k_f * e_f * (open_ * (1.0 - s_blend))
-
-
-def raywave_layer_diffuse_weight(t_fwd, open_, vis_v, k_b):
-    """raywave_lobes.h: raywave_layer_diffuse_weight = open vis_v k_b t_fwd."""
-    return k_b * t_fwd * (open_ * vis_v)
-
-
-def raywave_layer_translucent_weight(t_fwd, open_, k_f, s_blend):
-    """raywave_lobes.h: raywave_layer_translucent_weight = open s k_f t_fwd."""
-    return k_f * t_fwd * (open_ * s_blend)
-
-
-def double_layer_uv(xi, block, theta_count, phi_count, K):
-    """double_layer_factors.h: double_layer_uv(xi, block, theta_count, phi_count) -> (s, tv),
-    with K the headers' constants (LOOM_DOUBLE_LAYER_BLOCKS).
-
-        theta = acos(clamp(xi.z, 0, 1)) 180 / pi;  row = clamp(theta Tc / 90 - 0.5, 0, Tc - 1)
-        phi = |xi.x| + |xi.y| > 1e-9 ? atan2(xi.y, xi.x) 180 / pi : 0;  phi < 0: phi += 360
-        col = clamp(phi Pc / 360 + 0.5, 0.5, Pc + 0.5);  w = Pc + 2
-        s = (block w + col + 0.5) / (LOOM_DOUBLE_LAYER_BLOCKS w);  tv = (row + 0.5) / Tc
-    """
-    theta = acos(clamp(xi.z, 0.0, 1.0)) * (180.0 / math.pi)
-    row = clamp(theta * (theta_count / 90.0) - 0.5, 0.0, theta_count - 1.0)
-    phi = select(fabs(xi.x) + fabs(xi.y) > 1e-9, atan2(xi.y, xi.x) * (180.0 / math.pi), 0.0)
-    phi = select(phi < 0.0, phi + 360.0, phi)
-    col = clamp(phi * (phi_count / 360.0) + 0.5, 0.5, phi_count + 0.5)
-    w = phi_count + 2.0
-    return ((col + (block * w + 0.5)) / (K["LOOM_DOUBLE_LAYER_BLOCKS"] * w),
-            (row + 0.5) / theta_count)
-
-
-# ======================================================================= atlas checks
-
-
-def _grid(manifest: dict) -> dict:
-    """The lobe grids of a ray-wave atlas, which the OSL shader takes once for all tables: raise
-    ValueError naming what differs when the yarns' or the components' grids are not one."""
-    rw = manifest["raywave"]
-    grids = []
-    for y in ("warp", "weft"):
-        for part in ("high", "refl"):
-            g = rw["yarns"][y][part]
-            grids.append(((g["theta_i"]["count"], g["theta_i"]["min"], g["theta_i"]["max"]),
-                          (g["h"]["count"], g["h"]["min"], g["h"]["max"])))
-    if any(g != grids[0] for g in grids):
-        raise ValueError("the yarns' lobe tables use different (theta_i, h) grids; the ray-wave "
-                         "shaders take one grid (not yet supported: bake both yarns at one "
-                         "quality)")
-    (m, th_lo, th_hi), (n, h_lo, h_hi) = grids[0]
-    if (float(h_lo), float(h_hi)) != (-1.0, 1.0):
-        raise ValueError(f"the lobe tables' h range is [{h_lo}, {h_hi}]; the ray-wave shaders "
-                         f"take h in [-1, 1]")
-    lobes = {part: {rw["yarns"][y][part]["lobes"] for y in ("warp", "weft")}
-             for part in ("high", "refl")}
-    if any(len(v) != 1 for v in lobes.values()):
-        raise ValueError("the yarns' lobe tables have different lobe counts; the ray-wave shaders "
-                         "take one count per component")
-    dl = rw["double_layer"]
-    return {"m": int(m), "n": int(n), "theta_min": float(th_lo), "theta_max": float(th_hi),
-            "h_min": float(h_lo), "h_max": float(h_hi),
-            "high_lobes": int(next(iter(lobes["high"]))),
-            "refl_lobes": int(next(iter(lobes["refl"]))),
-            "layer_theta_count": int(dl["theta_count"]), "layer_phi_count": int(dl["phi_count"]),
-            "blend": float(dl.get("blend", 0.5))}
-
-
-def _diffraction(manifest: dict) -> dict | None:
-    """The gap diffraction the shaders sample (diffraction_sampling.h), or None for delta
-    transmission (no gap table: the non-wave variant, or yarns that touch). Raises KeyError when
-    a gap table comes without its sampling table (an older loom-bake)."""
-    dif = manifest["raywave"].get("diffraction", {})
-    files = dif.get("files", {})
-    if dif.get("mode") != "tables" or "gap" not in files:
-        return None
-    n = int(dif["gap_offsets"])
-    return {"file": files["gap_sampling"], "tiles_x": n, "tiles_y": n,
-            "size": int(dif["tile_size"]), "gap_fraction": [float(g) for g in dif["gap_fraction"]],
-            "weft_yarns": int(manifest["repeat"]["weft_yarns"]),
-            "warp_yarns": int(manifest["repeat"]["warp_yarns"])}
-
-
-def _noise(manifest: dict) -> dict | None:
-    """The speckle noise tiles (speckle_noise.h), or None (wave.noise off). Raises KeyError when
-    the tiles come without their blur levels (an older loom-bake)."""
-    nz = manifest["raywave"].get("noise", {})
-    files = nz.get("files", {})
-    if "refl" not in files:
-        return None
-    return {"refl": files["refl"], "high": files["high"], "instances": int(nz["instances"]),
-            "theta_count": int(nz["theta_count"]), "levels": int(nz["levels"])}
-
-
-def atlas_problem(manifest: dict) -> str | None:
-    """None if node mode (and the OSL shader) can read this ray-wave atlas, else why not."""
-    try:
-        rw = manifest["raywave"]
-        textures = manifest["textures"]
-        for y in ("warp", "weft"):
-            if rw["yarns"][y].get("node_layout") != NODE_LAYOUT:
-                return (f"its lobe tables are not in the {NODE_LAYOUT!r} layout this add-on reads "
-                        f"(they are {rw['yarns'][y].get('node_layout')!r}): re-bake the atlas with "
-                        f"this version of loom-bake")
-        got = rw["shading"].get("factors_layout")
-        if got != FACTORS_LAYOUT:
-            return (f"raywave.shading.factors_layout is "
-                    f"{'missing' if got is None else repr(got)}, not the {FACTORS_LAYOUT!r} this "
-                    f"add-on reads (double-layer factors of an older loom-bake): re-bake the "
-                    f"atlas with this version of loom-bake")
-        _grid(manifest)
-        needed = set(MAPS) | {rw["shading"]["microfacet_albedo"], rw["shading"]["asg_integral"],
-                              *rw["shading"]["factors"].values()}
-        for y in ("warp", "weft"):
-            files = rw["yarns"][y]["files"]
-            needed |= {files["high"], files["refl"], files["tint"], files["residual"]}
-        dif = _diffraction(manifest)
-        if dif:
-            needed.add(dif["file"])
-        nz = _noise(manifest)
-        if nz:
-            needed |= {nz["refl"], nz["high"]}
-    except (KeyError, TypeError) as exc:
-        return (f"not a ray-wave atlas with render tables (manifest lacks {exc}): re-bake it "
-                f"with this version of loom-bake")
-    except ValueError as exc:
-        return str(exc)
-    missing = sorted(m for m in needed if m not in textures)
-    if missing:
-        return f"maps missing: {', '.join(missing)}"
-    K = constants()
-    n = int(K["LOOM_MICROFACET_ALBEDO_SIZE"])
-    got = list(textures[rw["shading"]["microfacet_albedo"]].get("size", []))
-    if got != [n, n]:
-        return f"microfacet albedo LUT is {got}, the shaders expect {[n, n]}"
-    n = int(K["LOOM_ASG_INTEGRAL_LUT_SIZE"])
-    got = list(textures[rw["shading"]["asg_integral"]].get("size", []))
-    if got != [n, n]:
-        return f"ASG integral LUT is {got}, the shaders expect {[n, n]}: re-bake the atlas"
-    # The tables' sizes against the grids (raywave_lobes.h: asg_node_uv, asg_tint_uv).
-    g = _grid(manifest)
-    rows, cols = g["m"] // 2 + 1, g["n"] // 2 + 1
-    parts = int(K["LOOM_RAYWAVE_PARTS"])
-    for y in ("warp", "weft"):
-        files = rw["yarns"][y]["files"]
-        want = {files["high"]: [parts * g["high_lobes"] * cols, rows],
-                files["refl"]: [parts * g["refl_lobes"] * cols, rows],
-                files["tint"]: [g["high_lobes"] * cols, rows],
-                files["residual"]: [2 * g["n"], g["m"]]}
-        for name, size in want.items():
-            got = list(textures[name].get("size", []))
-            if got != size:
-                return f"{name} is {got}, the grids say {size}: re-bake the atlas"
-    # The double-layer factors (double_layer_factors.h: double_layer_uv).
-    want = [int(K["LOOM_DOUBLE_LAYER_BLOCKS"]) * (g["layer_phi_count"] + 2),
-            g["layer_theta_count"]]
-    for name in rw["shading"]["factors"].values():
-        got = list(textures[name].get("size", []))
-        if got != want:
-            return f"{name} is {got}, the double-layer grids say {want}: re-bake the atlas"
-    dif = _diffraction(manifest)
-    if dif:
-        want = [int(K["LOOM_DIFFRACTION_ICDF_SIZE"]) * dif["tiles_x"],
-                (dif["size"] + 1) * dif["tiles_y"]]
-        got = list(textures[dif["file"]].get("size", []))
-        if got != want:
-            return f"{dif['file']} is {got}, the diffraction tables say {want}: re-bake the atlas"
-    nz = _noise(manifest)
-    if nz:
-        if nz["levels"] != int(K["LOOM_NOISE_LEVELS"]):
-            return (f"its noise tiles have {nz['levels']} blur levels, the shaders read "
-                    f"{int(K['LOOM_NOISE_LEVELS'])}: re-bake the atlas")
-        want = [2 * nz["theta_count"], nz["theta_count"] * nz["instances"] * nz["levels"]]
-        for name in (nz["refl"], nz["high"]):
-            got = list(textures[name].get("size", []))
-            if got != want:
-                return f"{name} is {got}, the noise settings say {want}: re-bake the atlas"
-    return None
-
-
-def osl_parameters(manifest: dict) -> tuple[dict, dict]:
-    """(texture parameters -> atlas texture names, other parameters -> values) of
-    loom_cloth_raywave.osl for this atlas."""
-    rw = manifest["raywave"]
-    g = _grid(manifest)
-    tex = {m: m for m in MAPS}
-    for y in ("warp", "weft"):
-        files = rw["yarns"][y]["files"]
-        tex[f"high_{y}"] = files["high"]
-        tex[f"refl_{y}"] = files["refl"]
-        tex[f"tint_{y}"] = files["tint"]
-        tex[f"residual_{y}"] = files["residual"]
-    tex["factors_front"] = rw["shading"]["factors"]["front"]
-    tex["factors_back"] = rw["shading"]["factors"]["back"]
-    tex["microfacet_albedo"] = rw["shading"]["microfacet_albedo"]
-    tex["asg_integral_lut"] = rw["shading"]["asg_integral"]
-    values = {"high_lobes": g["high_lobes"], "refl_lobes": g["refl_lobes"],
-              "theta_count": g["m"], "h_count": g["n"], "theta_min": g["theta_min"],
-              "theta_max": g["theta_max"], "layer_theta_count": g["layer_theta_count"],
-              "layer_phi_count": g["layer_phi_count"], "double_layer_blend": g["blend"]}
-    nz = _noise(manifest)
-    if nz:  # (without: the shader's defaults, empty names, give no noise)
-        tex["noise_refl"], tex["noise_high"] = nz["refl"], nz["high"]
-        values["noise_instances"] = nz["instances"]
-    dif = _diffraction(manifest)
-    if dif:  # (without: the shader's defaults, diffraction_tiles_x = 0, give delta transmission)
-        tex["diffraction_gap_sampling"] = dif["file"]
-        values.update({"diffraction_tiles_x": dif["tiles_x"], "diffraction_tiles_y": dif["tiles_y"],
-                       "diffraction_size": dif["size"], "weft_yarns": dif["weft_yarns"],
-                       "warp_yarns": dif["warp_yarns"], "gap_fraction_x": dif["gap_fraction"][0],
-                       "gap_fraction_y": dif["gap_fraction"][1]})
-    return tex, values
 
 
 def group_name(manifest: dict) -> str:
@@ -983,13 +252,13 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     Interface and ``interpolation`` (of the periodic surface maps) as
     node_mode.build_surface_group; the tables are always read as described in the module
     docstring. The lobes are instances of a second group, ``<name> lobe`` (build_lobe_group)."""
-    problem = atlas_problem(manifest)
+    problem = _manifest.raywave_problem(manifest)
     if problem:
         raise ValueError(f"{atlas_dir}: {problem}")
     K = constants()
-    g = _grid(manifest)
+    g = _manifest.raywave_grid(manifest)
     rw = manifest["raywave"]
-    tex_params, _ = osl_parameters(manifest)
+    tex_params, _ = _manifest.raywave_osl_parameters(manifest)
     M, N_ = g["m"], g["n"]
     rows, cols = M // 2 + 1, N_ // 2 + 1
 
@@ -1005,7 +274,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     albedo_img = image(rw["shading"]["microfacet_albedo"])
     integral_img = image(rw["shading"]["asg_integral"])
     functions: dict = {}  # the function groups (Builder.call) of this build
-    nz = _noise(manifest)
+    nz = _manifest.raywave_noise(manifest)
     if nz:  # f_refl and f_high lobes read different noise tiles (speckle_noise.h)
         lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, integral_img, K,
                                               image(nz[part]), part == "refl", nz["instances"],
@@ -1044,7 +313,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         tan = b.new("ShaderNodeTangent", direction_type="UV_MAP")
         scale_ = b.float_socket(gin.outputs["Scale"])
         uvraw = b.vector_socket(texco.outputs["UV"])
-        uv = b.label(vec(uvraw.x * scale_, uvraw.y * scale_ * node_mode.repeat_aspect(manifest),
+        uv = b.label(vec(uvraw.x * scale_, uvraw.y * scale_ * _manifest.repeat_aspect(manifest),
                          0.0), "uv = UV * (Scale, Scale * Aspect)")
 
     with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
@@ -1182,7 +451,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     gap = 1.0 - open_
     gap_delta = vec(gap, gap, gap)
     gap_lobes = []
-    dif = _diffraction(manifest)
+    dif = _manifest.raywave_diffraction(manifest)
     if dif:
         with b.block("Gap diffraction (diffraction_sampling.h; loom_cloth_raywave.osl)"):
             # Four independent uniform numbers. (Not one node's Value and Color: Cycles' white

@@ -14,7 +14,8 @@ import bpy
 from bpy.props import StringProperty
 from bpy.types import Operator
 
-from . import bakery, colour_config, material, node_mode, preferences, scene_needs
+from . import api, bakery, colour_config, fibers, manifest as _manifest, material, preferences
+from . import scene_needs
 
 
 def _spec_for_scene(context, mat, exe: str, spec: str, cache: str) -> str:
@@ -64,7 +65,7 @@ def _request(context, mat) -> bakery.BakeRequest:
     exe = bakery.find_loom_bake(prefs.loom_bake_path if prefs else None)
     tier = bakery.spec_tier(exe, spec) if exe else None
     if tier and tier not in ("surface", "raywave"):
-        raise bakery.LoomBakeError(f"{spec}: {node_mode.tier_problem(tier, 'spec')}")
+        raise bakery.LoomBakeError(f"{spec}: {_manifest.tier_problem(tier, 'spec')}")
     cache = bpy.path.abspath(prefs.cache_dir) if prefs and prefs.cache_dir else None
     cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))
     os.makedirs(cache, exist_ok=True)
@@ -73,7 +74,7 @@ def _request(context, mat) -> bakery.BakeRequest:
     return bakery.BakeRequest(spec=spec, quality=s.quality,
                               loom_bake=(prefs.loom_bake_path or None) if prefs else None,
                               cache_dir=cache, ocio_config=colour_config.staged(cache),
-                              validate=node_mode.atlas_problem)
+                              validate=_manifest.atlas_problem)
 
 
 def apply_atlas(context, mat, obj, atlas_dir: str) -> material.AssignResult:
@@ -346,7 +347,6 @@ class LOOM_OT_fibers_update(Operator):
                 and context.object is not None and context.object.type == "MESH")
 
     def execute(self, context):
-        from . import api
         try:
             res = api.update_fibers(context.object, context.scene)
         except bakery.LoomBakeError as exc:
@@ -365,11 +365,9 @@ class LOOM_OT_fibers_remove(Operator):
 
     @classmethod
     def poll(cls, context):
-        from . import fibers
         return context.object is not None and fibers.fibers_object(context.object) is not None
 
     def execute(self, context):
-        from . import fibers
         fibers.remove_fibers(context.object)
         return {"FINISHED"}
 

@@ -51,6 +51,16 @@ def header_constants() -> dict[str, float]:
     return out
 
 
+def required_constants(required) -> dict[str, float]:
+    """header_constants(); raises naming any of ``required`` that the headers lack."""
+    c = header_constants()
+    missing = [k for k in required if k not in c]
+    if missing:
+        raise RuntimeError(f"the shared OSL headers do not define {', '.join(missing)} (are the "
+                           f"add-on's osl/ sources present? {osl_dir()})")
+    return c
+
+
 def flatten(path: str, include_paths: list[str] | None = None) -> str:
     """The text of the OSL file ``path`` with every quoted ``#include`` that resolves to a file
     (relative to the including file first, then ``include_paths``) replaced by that file's

@@ -44,4 +44,12 @@ def get(context=None):
     return addon.preferences if addon is not None else None
 
 
+def find_loom_bake(loom_bake: str | None = None) -> str | None:
+    """loom-bake from the argument, the add-on preference, $LOOM_BAKE or PATH."""
+    if loom_bake:
+        return bakery.find_loom_bake(loom_bake)
+    p = get()
+    return bakery.find_loom_bake(p.loom_bake_path if p is not None else None)
+
+
 classes = (LoomPreferences,)

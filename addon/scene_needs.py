@@ -20,7 +20,6 @@ and centre) for the camera distance and for which side a light is on.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import bpy

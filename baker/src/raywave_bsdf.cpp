@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "loom/cycles_closures.h"
+#include "raywave_point.h"
 
 namespace loom {
 
@@ -59,167 +60,7 @@ void sample_periodic(const Image& img, float s, float tv, float out[4]) {
 
 }  // namespace
 
-RaywaveData load_raywave(const Atlas& a) {
-  RaywaveData d;
-  const json& m = a.manifest;
-  if (m.value("tier", "") != "raywave" || !m.contains("raywave"))
-    throw std::runtime_error("not a ray-wave atlas (bake with \"model\": {\"tier\": \"raywave\"})");
-  const json& rw = m["raywave"];
-  if (!rw.contains("shading") || !rw["shading"].is_object())
-    throw std::runtime_error("raywave.shading: missing (an atlas from before ray-wave shading: "
-                             "re-bake it)");
-  if (rw["shading"].value("sigma_interpolation", "") != kSigmaInterpolation)
-    throw std::runtime_error("raywave.shading.sigma_interpolation: the render tables interpolate "
-                             "between absorption levels otherwise than this loom-bake (an atlas "
-                             "from an older loom-bake: re-bake it)");
-  for (int y = 0; y < 2; ++y) {
-    const char* yarn = y == 0 ? "warp" : "weft";
-    d.yarn[y] = load_ply_tables(a, yarn);
-    const json& e = d.yarn[y].entry;
-    const json& s = e["absorption"]["sigma_rgb_per_mm"];
-    for (int c = 0; c < 3; ++c) {
-      d.sigma_rgb[y][size_t(c)] = s.at(size_t(c)).get<double>();
-      if (!(d.sigma_rgb[y][size_t(c)] >= 0))
-        throw std::runtime_error(fmt::format("raywave.yarns.{}.absorption.sigma_rgb_per_mm: {} is "
-                                             "negative (allowed: 0 or more, 1/mm)",
-                                             yarn, d.sigma_rgb[y][size_t(c)]));
-    }
-    d.nodes_high[y] = &a.map(e["files"]["high"].get<std::string>());
-    d.nodes_refl[y] = &a.map(e["files"]["refl"].get<std::string>());
-    d.tint[y] = &a.map(e["files"]["tint"].get<std::string>());
-    if (!e["files"].contains("residual"))
-      throw std::runtime_error(fmt::format("raywave.yarns.{}.files.residual: missing (an atlas from "
-                                           "an older loom-bake: re-bake it)", yarn));
-    d.residual[y] = &a.map(e["files"]["residual"].get<std::string>());
-    const int M = int(d.yarn[y].high.theta_i.size()), N = int(d.yarn[y].high.h.size());
-    if (d.residual[y]->width != 2 * N || d.residual[y]->height != M)
-      throw std::runtime_error(fmt::format("raywave.yarns.{}.files.residual: image is {}x{}, the "
-                                           "grids say {}x{}", yarn, d.residual[y]->width,
-                                           d.residual[y]->height, 2 * N, M));
-  }
-  const json& dl = rw["double_layer"];
-  d.blend = dl.value("blend", 0.5);
-  for (int side = 0; side < 2; ++side) {
-    const char* key = side == 0 ? "front" : "back";
-    DoubleLayerGrid& g = d.layers[side];
-    g.table = a.map(dl["files"][key].get<std::string>());
-    g.theta_count = dl["theta_count"];
-    g.phi_count = dl["phi_count"];
-    g.sigmas = dl["sigma_per_mm"].get<std::vector<double>>();
-    g.absorption = layer_absorption_curve(rw);
-    if (g.table.width != g.phi_count || g.table.height != g.theta_count * int(g.sigmas.size()))
-      throw std::runtime_error(fmt::format("raywave.double_layer: table {} is {}x{}, the grids say "
-                                           "{}x{}", key, g.table.width, g.table.height,
-                                           g.phi_count, g.theta_count * g.sigmas.size()));
-    d.factors[side] = &a.map(rw["shading"]["factors"][key].get<std::string>());
-    if (d.factors[side]->width != LOOM_DOUBLE_LAYER_BLOCKS * (g.phi_count + 2) ||
-        d.factors[side]->height != g.theta_count)
-      throw std::runtime_error(fmt::format(
-          "raywave.shading.factors.{}: table is {}x{}, the grids say {}x{}", key,
-          d.factors[side]->width, d.factors[side]->height,
-          LOOM_DOUBLE_LAYER_BLOCKS * (g.phi_count + 2), g.theta_count));
-  }
-  d.microfacet_albedo = &a.map(rw["shading"]["microfacet_albedo"].get<std::string>());
-  if (!rw["shading"].contains("asg_integral"))
-    throw std::runtime_error("raywave.shading.asg_integral: missing (an atlas from an older "
-                             "loom-bake: re-bake it)");
-  d.asg_integral = &a.map(rw["shading"]["asg_integral"].get<std::string>());
-  if (d.asg_integral->width != LOOM_ASG_INTEGRAL_LUT_SIZE ||
-      d.asg_integral->height != LOOM_ASG_INTEGRAL_LUT_SIZE)
-    throw std::runtime_error(fmt::format("raywave.shading.asg_integral: the LUT is {}x{}, not {}x{}",
-                                         d.asg_integral->width, d.asg_integral->height,
-                                         LOOM_ASG_INTEGRAL_LUT_SIZE, LOOM_ASG_INTEGRAL_LUT_SIZE));
-  // Gap diffraction (diffraction_sampling.h), when the atlas has a gap table.
-  const json& dif = rw.value("diffraction", json());
-  if (dif.value("mode", "") == "tables" && dif.contains("files") && dif["files"].contains("gap")) {
-    if (!dif["files"].contains("gap_sampling") || !dif.contains("spot_s") ||
-        !dif.contains("gap_fraction"))
-      throw std::runtime_error("raywave.diffraction: no gap sampling table (an atlas from an "
-                               "older loom-bake: re-bake it)");
-    GapDiffraction& g = d.diffraction;
-    const Image& img = a.map(dif["files"]["gap"].get<std::string>());
-    const int size = dif.value("tile_size", 0);
-    if (img.channels != 3)
-      throw std::runtime_error("raywave.diffraction: the gap table is not RGB");
-    g.table = diffraction_table_from_rgb(img.width, img.height, img.data.data(), size);
-    g.sampling = &a.map(dif["files"]["gap_sampling"].get<std::string>());
-    if (g.sampling->width != LOOM_DIFFRACTION_ICDF_SIZE * g.table.tiles_x ||
-        g.sampling->height != (size + 1) * g.table.tiles_y || g.sampling->channels != 3)
-      throw std::runtime_error(fmt::format(
-          "raywave.diffraction: the gap sampling table is {}x{}, the gap table says {}x{}",
-          g.sampling->width, g.sampling->height, LOOM_DIFFRACTION_ICDF_SIZE * g.table.tiles_x,
-          (size + 1) * g.table.tiles_y));
-    g.spot_s = dif["spot_s"].get<double>();
-    for (int k = 0; k < 2; ++k) g.gap_fraction[k] = dif["gap_fraction"].at(size_t(k)).get<float>();
-    g.yarns[0] = m.at("repeat").at("weft_yarns").get<int>();
-    g.yarns[1] = m.at("repeat").at("warp_yarns").get<int>();
-    for (int t = 0; t < g.table.tiles_x * g.table.tiles_y; ++t)
-      for (int c = 0; c < 3; ++c)
-        g.sampler.push_back(
-            diffraction_sampler(g.table, t % g.table.tiles_x, t / g.table.tiles_x, c, g.spot_s));
-    g.present = true;
-  }
-  // Speckle noise (speckle_noise.h), when the atlas has the tiles.
-  const json& nz = rw.value("noise", json());
-  if (nz.is_object() && nz.contains("files") && nz["files"].contains("refl")) {
-    if (nz.value("levels", 0) != LOOM_NOISE_LEVELS)
-      throw std::runtime_error("raywave.noise: no blur levels (an atlas from an older loom-bake: "
-                               "re-bake it)");
-    SpeckleNoise& n = d.noise;
-    n.instances = nz.value("instances", 1);
-    const int T = nz.value("theta_count", 0);
-    n.refl = &a.map(nz["files"]["refl"].get<std::string>());
-    n.high = &a.map(nz["files"]["high"].get<std::string>());
-    for (const Image* img : {n.refl, n.high})
-      if (img->width != 2 * T || img->height != T * n.instances * LOOM_NOISE_LEVELS)
-        throw std::runtime_error(fmt::format("raywave.noise: a tile is {}x{}, the manifest says "
-                                             "{}x{}", img->width, img->height, 2 * T,
-                                             T * n.instances * LOOM_NOISE_LEVELS));
-    n.present = true;
-  }
-  return d;
-}
 
-/// A shading point set up for one view (Cycles' setup/eval split).
-struct RaywavePoint::Impl {
-  Evaluator e = Evaluator::Model;
-  bool valid = false, back = false;
-  vec3 V, xp, yp, t;
-  float open = 0, vis_v = 1, s = 0.5f;
-  float hor[LOOM_HORIZON_DIRS] = {};
-  // model
-  std::vector<AsgLobe> refl, high[3];
-  std::array<float, 3> res_b{}, res_f{};  ///< energy residual per side (asg_residual.h)
-  /// double_layer_factors.h: k_b, k_f at xi = V, and the point's forward light T (model: the
-  /// lobes' energy below the cloth's plane plus the forward residual; closures: the lobes'
-  /// raywave_lobe_forward plus e_f)
-  std::array<float, 3> k_b{}, k_f{}, t_fwd{};
-  // closures
-  std::vector<cycles::MicrofacetReflection> mf;
-  std::vector<std::array<float, 3>> mf_w;
-  std::vector<cycles::MicrofacetRefraction> refr;
-  std::vector<std::array<float, 3>> refr_w;
-  std::array<float, 3> transl_w{}, diffuse_w{};
-  std::vector<RaywaveClosure> list;
-  /// model: f_refl's lobes per channel with raywave_energy_budget's factors in their amplitudes
-  /// (high's are scaled in place), and the factor of the residual's and the layers' light
-  std::array<std::vector<AsgLobe>, 3> refl_rgb;
-  std::array<float, 3> rest_scale{1, 1, 1};
-  // speckle noise (speckle_noise.h): the point's instance and rotation, the beam in ply space
-  const SpeckleNoise* noise = nullptr;
-  int noise_instance = 0;
-  float noise_shift = 0;
-  vec3 wi_ply;
-  // gap diffraction (diffraction_sampling.h): the texel's open fraction and the tiles its
-  // offset blends, with their weights (the probabilities of diffraction_tile_pick)
-  const GapDiffraction* dif = nullptr;
-  const Image* albedo_lut = nullptr;
-  float gap = 0;
-  int tiles = 0;
-  std::vector<int> tile;
-  std::vector<float> tile_w;
-  std::vector<std::array<float, 3>> p_out;
-};
 
 namespace {
 
@@ -240,8 +81,10 @@ vec3 lobe_noise(const RaywavePoint::Impl& q, vec3 lz, bool is_refl, float mu1, f
               n0[2] * (1 - t) + n1[2] * t);
 }
 
-RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 wo, Evaluator e,
-                           bool gap_diffraction) {
+}  // namespace
+
+RaywavePoint::Impl raywave_prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 wo,
+                                   Evaluator e, bool gap_diffraction) {
   // Texels and absorption outside their ranges are brought back first (guard_surface_point).
   const SurfacePoint p = guard_surface_point(p_in);
   std::array<double, 3> sigma[2];
@@ -551,6 +394,8 @@ RaywavePoint::Impl prepare(const RaywaveData& d, const SurfacePoint& p_in, vec3 
   return q;
 }
 
+namespace {
+
 /// The model's gap diffraction at L (far side, tangent frame, V.z > 0): the open fraction times
 /// obliquity times the pattern normalised to unit power (diffraction_sampling.h), the tiles
 /// blended with their weights, the table read bilinearly in t.
@@ -613,8 +458,9 @@ std::array<float, 3> gap_diffraction_closures(const RaywavePoint::Impl& q, vec3 
   return out;
 }
 
-/// The model's noise factors (Eq. S.39) at ply-space direction lp: f_refl's and f_high's.
-void model_noise(const RaywavePoint::Impl& q, const Vec3d& lp, float nr[4], float nh[4]) {
+}  // namespace
+
+void raywave_model_noise(const RaywavePoint::Impl& q, const Vec3d& lp, float nr[4], float nh[4]) {
   for (int c = 0; c < 4; ++c) nr[c] = nh[c] = 1;
   if (!q.noise) return;
   const vec3 w(float(lp.x), float(lp.y), float(lp.z));
@@ -626,6 +472,8 @@ void model_noise(const RaywavePoint::Impl& q, const Vec3d& lp, float nr[4], floa
   sample_periodic(*q.noise->high, u, noise_level_v(v, 0, LOOM_NOISE_LEVELS), nh);
 }
 
+namespace {
+
 std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
   const Evaluator e = q.e;
   std::array<float, 3> out = {0, 0, 0};
@@ -636,7 +484,7 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
     const Vec3d lp{dot(L, q.xp), dot(L, q.yp), dot(L, q.t)};
     // Eq. S.39: f_refl N_r(w'_o) + f_high N_h(w_o), the tiles themselves (level 0).
     float nr[4], nh[4];
-    model_noise(q, lp, nr, nh);
+    raywave_model_noise(q, lp, nr, nh);
     for (int c = 0; c < 3; ++c) {
       const size_t cc = size_t(c);
       const double f = asg_mixture_eval(q.refl_rgb[cc], lp) * nr[c] +
@@ -684,7 +532,7 @@ std::array<float, 3> eval_prepared(const RaywavePoint::Impl& q, vec3 wi) {
 
 RaywavePoint::RaywavePoint(const RaywaveData& d, const SurfacePoint& p, vec3 wo, Evaluator e,
                            bool gap_diffraction)
-    : impl_(std::make_shared<const Impl>(prepare(d, p, wo, e, gap_diffraction))) {}
+    : impl_(std::make_shared<const Impl>(raywave_prepare(d, p, wo, e, gap_diffraction))) {}
 
 std::array<float, 3> RaywavePoint::eval(vec3 wi) const { return eval_prepared(*impl_, wi); }
 
@@ -693,142 +541,6 @@ const std::vector<RaywaveClosure>& RaywavePoint::closures() const { return impl_
 std::array<float, 3> raywave_eval(const RaywaveData& d, const SurfacePoint& p, vec3 wi, vec3 wo,
                                   Evaluator e) {
   return RaywavePoint(d, p, wo, e).eval(wi);
-}
-
-std::array<float, 3> raywave_eval_average(const Atlas& a, const RaywaveData& d, vec3 wi, vec3 wo,
-                                          Evaluator e) {
-  const Image& ref = a.map("ply_frame");
-  double acc[3] = {0, 0, 0};
-  for (int iy = 0; iy < ref.height; ++iy)
-    for (int ix = 0; ix < ref.width; ++ix) {
-      const std::array<float, 3> f = raywave_eval(d, texel_surface(a, ix, iy), wi, wo, e);
-      for (int c = 0; c < 3; ++c) acc[c] += f[size_t(c)];
-    }
-  const double n = double(ref.width) * ref.height;
-  return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
-}
-
-MappingByKind raywave_mapping_by_kind(const Atlas& a, const RaywaveData& d, int texels,
-                                      int views, int sphere_n) {
-  // Part k of the model and of the closures at L (green, f cos): 0 reflection, 2 refraction,
-  // 1 translucent lobes (by the closures' kind), 3 the energy residual, 4 the layers' light from
-  // T (the diffuse BTDF of S.22 and the light returned backwards: double_layer_factors.h).
-  auto part = [](const RaywavePoint::Impl& qm, const RaywavePoint::Impl& qc, int k, vec3 wi) {
-    std::pair<float, float> out{0.0f, 0.0f};
-    if (!qm.valid || !qc.valid) return out;
-    const vec3 L = normalize(qm.back ? vec3(wi.x, wi.y, -wi.z) : wi);
-    const Vec3d lp{dot(L, qm.xp), dot(L, qm.yp), dot(L, qm.t)};
-    const vec3 n(0, 0, 1);
-    const double lambert = std::fabs(L.z) / M_PI * qm.rest_scale[1];
-    // The lobes' closures come first (one to three a lobe), then the rest (lobe = -1): the
-    // layers' translucent and diffuse parts, the residual's diffuse and translucent ones,
-    // transparent().
-    size_t nl = 0;
-    while (nl < qc.list.size() && qc.list[nl].lobe >= 0) ++nl;
-    if (k == 3) {
-      const double m = L.z > 0 ? qm.open * qm.vis_v * qm.res_b[1] * lambert
-                               : qm.open * (1 - qm.s) * qm.k_f[1] * qm.res_f[1] * lambert;
-      const float c = qc.list[nl + 2].weight[1] * cycles::diffuse_eval(n, L, n) +
-                      qc.list[nl + 3].weight[1] * cycles::translucent_eval(n, L, n);
-      return std::pair<float, float>(float(m), c);
-    }
-    if (k == 4) {
-      const double m = L.z < 0 ? qm.open * qm.s * qm.k_f[1] * qm.t_fwd[1] * lambert
-                               : qm.open * qm.vis_v * qm.k_b[1] * qm.t_fwd[1] * lambert;
-      return std::pair<float, float>(
-          float(m), qc.list[nl].weight[1] * cycles::translucent_eval(n, L, n) +
-                        qc.list[nl + 1].weight[1] * cycles::diffuse_eval(n, L, n));
-    }
-    float nr[4], nh[4];
-    model_noise(qm, lp, nr, nh);
-    const float vis_l = qm.back || L.z <= 0 ? 1.0f : horizon_visibility(L, const_cast<float*>(qm.hor));
-    const double factor = L.z > 0 ? qm.open * qm.vis_v * vis_l
-                                  : qm.open * (1 - qm.s) * qm.k_f[1];
-    size_t imf = 0, irf = 0;
-    for (size_t i = 0; i < nl; ++i) {
-      const RaywaveClosure& cl = qc.list[i];
-      float c = 0;
-      if (cl.kind == 0) {
-        c = qc.mf[imf].eval(L) * qc.mf_w[imf][1];
-        ++imf;
-      } else if (cl.kind == 2) {
-        c = qc.refr[irf].eval(L) * qc.refr_w[irf][1];
-        ++irf;
-      } else {
-        c = cl.weight[1] * cycles::translucent_eval(n, L, n);
-      }
-      if (cl.kind != k) continue;
-      // The model's part of kind k: each lobe's share of that kind.
-      const size_t l = size_t(cl.lobe);
-      const bool refl = l < qm.refl.size();
-      const AsgLobe& lobe = refl ? qm.refl_rgb[1][l] : qm.high[1][l - qm.refl.size()];
-      const double f = cl.share * asg_mixture_eval({lobe}, lp) * (refl ? nr[1] : nh[1]);
-      out.first += float(f * factor);
-      out.second += c;
-    }
-    return out;
-  };
-  MappingByKind r;
-  MappingError* slot[5] = {&r.reflection, &r.translucent, &r.refraction, &r.residual,
-                           &r.layer_diffuse};
-  for (int k = 0; k < 5; ++k)
-    *slot[k] = mapping_error_loop(a, texels, views, sphere_n, [&d, k, part](const SurfacePoint& p, vec3 v) {
-      auto qm = std::make_shared<const RaywavePoint::Impl>(prepare(d, p, v, Evaluator::Model, false));
-      auto qc = std::make_shared<const RaywavePoint::Impl>(prepare(d, p, v, Evaluator::Closures, false));
-      return MappingPair([qm, qc, k, part](vec3 l) { return part(*qm, *qc, k, l); });
-    });
-  return r;
-}
-
-MappingError raywave_mapping_error(const Atlas& a, const RaywaveData& d, int texels, int views,
-                                   int sphere_n) {
-  return mapping_error_loop(a, texels, views, sphere_n, [&d](const SurfacePoint& p, vec3 v) {
-    // (The gaps' diffraction is too narrow for the sphere of directions: left out of both.)
-    const RaywavePoint pm(d, p, v, Evaluator::Model, false), pc(d, p, v, Evaluator::Closures, false);
-    return MappingPair([pm, pc](vec3 l) {  // eval is already BSDF times cosine
-      return std::pair<float, float>(pm.eval(l)[1], pc.eval(l)[1]);
-    });
-  });
-}
-
-}  // namespace loom
-
-namespace loom {
-
-DirectionalAlbedo raywave_albedo(const Atlas& a, const RaywaveData& d, vec3 wo, Evaluator e,
-                                 int texels, int sphere_n) {
-  const Image& ref = a.map("ply_frame");
-  const int side = std::max(1, int(std::lround(std::sqrt(double(std::max(texels, 1))))));
-  const double dw = sphere_grid_dw(sphere_n);
-  const std::vector<vec3> lights = sphere_grid(sphere_n);
-  std::vector<DirectionalAlbedo> per(size_t(side) * side);
-  tbb::parallel_for(0, side * side, [&](int idx) {
-    const int ix = int((idx % side + 0.5) / side * ref.width);
-    const int iy = int((idx / side + 0.5) / side * ref.height);
-    const SurfacePoint p = texel_surface(a, ix, iy);
-    const RaywavePoint pt(d, p, wo, e, false);
-    DirectionalAlbedo& r = per[size_t(idx)];
-    for (const vec3& l : lights) {
-      const std::array<float, 3> f = pt.eval(l);
-      auto& acc = (l.z > 0) == (wo.z > 0) ? r.reflect : r.transmit;
-      for (int c = 0; c < 3; ++c) acc[size_t(c)] += f[size_t(c)] * dw;
-    }
-    r.gap = std::clamp(p.gap, 0.0f, 1.0f);
-    const RaywavePoint pc(d, p, wo, Evaluator::Closures);  // (named: it owns the list)
-    for (const RaywaveClosure& cl : pc.closures())
-      if (cl.kind == 4)
-        for (int c = 0; c < 3; ++c) r.diffracted[size_t(c)] = r.gap - cl.weight[size_t(c)];
-  });
-  DirectionalAlbedo out;
-  for (const DirectionalAlbedo& r : per) {
-    for (int c = 0; c < 3; ++c) {
-      out.reflect[size_t(c)] += r.reflect[size_t(c)] / double(per.size());
-      out.transmit[size_t(c)] += r.transmit[size_t(c)] / double(per.size());
-    }
-    out.gap += r.gap / double(per.size());
-    for (int c = 0; c < 3; ++c) out.diffracted[size_t(c)] += r.diffracted[size_t(c)] / double(per.size());
-  }
-  return out;
 }
 
 }  // namespace loom

@@ -165,7 +165,7 @@ def check_osl_parameters(atlas):
     """OSL mode cannot run here (no OSL in this Blender): check at least that what the add-on
     sets on the Script node names the shader's parameters, and that every texture parameter of
     the shader gets a file."""
-    from loom import bakery, node_mode_raywave, osl_source
+    from loom import bakery, manifest as manifests, node_mode_raywave, osl_source
 
     with open(os.path.join(osl_source.osl_dir(), node_mode_raywave.SHADER), encoding="utf-8") as f:
         src = f.read()
@@ -173,7 +173,7 @@ def check_osl_parameters(atlas):
     body = src[head:src.index("output closure color BSDF", head)]  # the parameter list
     params = set(re.findall(r"^\s*(?:string|int|float|point|vector)\s+(\w+)\s*=", body, re.M))
     strings = set(re.findall(r"^\s*string\s+(\w+)\s*=", body, re.M))
-    tex, values = node_mode_raywave.osl_parameters(bakery.read_manifest(atlas))
+    tex, values = manifests.raywave_osl_parameters(bakery.read_manifest(atlas))
     unknown = (set(tex) | set(values)) - params
     assert not unknown, f"the add-on sets parameters the shader lacks: {sorted(unknown)}"
     assert strings <= set(tex), f"shader textures without a file: {sorted(strings - set(tex))}"
@@ -185,20 +185,20 @@ def check_table_sizes(atlas):
     the wrong texels in silence)."""
     import copy
 
-    from loom import bakery, node_mode_raywave
+    from loom import bakery, manifest as manifests
 
     m = bakery.read_manifest(atlas)
-    assert node_mode_raywave.atlas_problem(m) is None, node_mode_raywave.atlas_problem(m)
+    assert manifests.raywave_problem(m) is None, manifests.raywave_problem(m)
     for part in ("high", "refl", "tint"):
         bad = copy.deepcopy(m)
         name = bad["raywave"]["yarns"]["warp"]["files"][part]
         bad["textures"][name]["size"][0] += 1
-        why = node_mode_raywave.atlas_problem(bad)
+        why = manifests.raywave_problem(bad)
         assert why and name in why and "re-bake" in why, (part, why)
     bad = copy.deepcopy(m)
     name = bad["raywave"]["shading"]["factors"]["back"]
     bad["textures"][name]["size"][0] = bad["textures"][name]["size"][0] * 3 // 2  # 3 blocks
-    why = node_mode_raywave.atlas_problem(bad)
+    why = manifests.raywave_problem(bad)
     assert why and name in why and "re-bake" in why, why
     # Double-layer factors of an older loom-bake (ratios, not the per-point k_b, k_f).
     for value in (None, "ratios"):
@@ -207,7 +207,7 @@ def check_table_sizes(atlas):
             del bad["raywave"]["shading"]["factors_layout"]
         else:
             bad["raywave"]["shading"]["factors_layout"] = value
-        why = node_mode_raywave.atlas_problem(bad)
+        why = manifests.raywave_problem(bad)
         assert why and "raywave.shading.factors_layout" in why and "re-bake" in why, why
         assert ("missing" if value is None else repr(value)) in why, why
     print("loom-test: table sizes and the factors' layout checked against the grids")
