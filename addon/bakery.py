@@ -307,6 +307,7 @@ class BakeJob:
         self._out_dir = ""
         self._check_output = ""
         self._forced = request.force
+        self._error = ""  # the failure loom-bake reported on stdout (--progress=json)
         self._t0 = 0.0
 
     # -- public
@@ -345,7 +346,8 @@ class BakeJob:
                 self._bake_line(ln)
         if rc != 0:
             what = "check" if self.status.state == "checking" else "bake"
-            detail = _condense_stderr(self._proc.stderr) or f"exit code {rc}"
+            detail = (self._error or _condense_stderr(self._proc.stderr)
+                      or f"exit code {rc}")
             return self._fail(f"loom-bake {what} failed ({rc}): {detail}")
         if self.status.state == "checking":
             return self._start_bake()
@@ -433,6 +435,8 @@ class BakeJob:
             self.status.stage = str(msg["stage"])
             self.status.fraction = float(msg.get("fraction", 0.0))
             self.status.message = f"{self.status.stage} {100 * self.status.fraction:.0f}%"
+        if "error" in msg:  # loom-bake's own account of its failure (--progress=json)
+            self._error = "; ".join(str(e) for e in msg.get("errors") or [msg["error"]])
         if "atlas" in msg:
             self.status.atlas_dir = os.path.abspath(str(msg["atlas"]))
             self.status.reused = bool(msg.get("reused", False))

@@ -30,6 +30,12 @@ int main(int argc, char** argv) {
   unsigned threads = 0;
   app.add_option("--threads", threads, "worker threads (default: all cores)")
       ->check(CLI::Range(1u, 4096u));
+  bool quiet = false, verbose = false;
+  auto* q = app.add_flag("-q,--quiet", quiet,
+                         "say nothing on stderr but errors (bake: no progress)");
+  app.add_flag("-v,--verbose", verbose,
+               "say more on stderr (bake: each stage on a line of its own, with its time)")
+      ->excludes(q);
   app.fallthrough();
   app.footer(
       "Exit codes: 0 done; 1 failed (could not read or write, or an internal error); 2 bad "
@@ -56,6 +62,7 @@ int main(int argc, char** argv) {
     // --help and --version exit 0; every bad command line exits 2, like every other bad input.
     return app.exit(e) == 0 ? 0 : 2;
   }
+  cli::verbosity() = quiet ? 0 : verbose ? 2 : 1;
   std::optional<tbb::global_control> limit;
   if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
   try {

@@ -1,6 +1,7 @@
-// loom-bake's command-line conventions (issue 34, first part): --version with the commit,
-// --threads before or after the subcommand (results independent of it), the exit codes in
-// --help, and a destination that is not an atlas refused as bad input with nothing written.
+// loom-bake's command-line conventions (issue 34): --version with the commit, --threads before
+// or after the subcommand (results independent of it), the exit codes in --help, a destination
+// that is not an atlas refused as bad input with nothing written, a bake's errors as JSON with
+// --progress=json, -q and -v.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -87,6 +88,70 @@ TEST(CliConventions, BakingOverAFolderThatIsNotAnAtlasIsBadInput) {
   size_t n = 0;
   for (const auto& e : fs::directory_iterator(dir)) n += e.exists();
   EXPECT_EQ(n, 1u);  // the user's file alone, untouched
+}
+
+// With --progress=json (what the add-on reads), a bake's failure is also a JSON line on stdout
+// naming the problem, with the exit code; without it stdout stays empty on failure.
+TEST(CliConventions, BakeErrorsAreJsonOnStdoutWithProgressJson) {
+  namespace fs = std::filesystem;
+  const std::string exe = loom::test::bake_exe();
+  const fs::path spec = loom::test::scratch("bad-spec") / "bad.json";
+  fs::create_directories(spec.parent_path());
+  std::ofstream(spec) << R"({"schema": "loom.fabric/1", "weave": {"pattern": "plain"},
+    "density": {"warp_per_cm": -3}})";
+  const fs::path not_atlas = loom::test::scratch("json-not-an-atlas");
+  fs::create_directories(not_atlas);
+  std::ofstream(not_atlas / "notes.txt") << "a user's file\n";
+  const fs::path fresh = loom::test::scratch("json-fresh") / "out.atlas";
+  struct Case {
+    std::string args, names;
+  };
+  for (const Case& k : {Case{spec.string() + " -o " + fresh.string(), "warp_per_cm"},
+                        Case{"plain -o " + not_atlas.string(), "-o"}}) {
+    std::string out;
+    EXPECT_EQ(loom::test::run(exe + " bake " + k.args + " --progress=json 2>/dev/null", &out), 2)
+        << out;
+    nlohmann::json last;
+    for (size_t p = 0, e; p < out.size(); p = e + 1) {
+      e = out.find('\n', p);
+      if (e == std::string::npos) e = out.size();
+      if (e > p) last = nlohmann::json::parse(out.substr(p, e - p));
+    }
+    ASSERT_TRUE(last.is_object() && last.contains("error")) << out;
+    EXPECT_EQ(last.at("exit"), 2) << out;
+    EXPECT_NE(last.at("error").get<std::string>().find(k.names), std::string::npos) << out;
+    EXPECT_FALSE(last.at("errors").empty()) << out;
+    std::string quiet;
+    EXPECT_EQ(loom::test::run(exe + " bake " + k.args + " --progress=none 2>/dev/null", &quiet), 2);
+    EXPECT_TRUE(quiet.empty()) << quiet;
+  }
+  EXPECT_FALSE(fs::exists(fresh));
+}
+
+// -v: a bake says each stage on a line of its own with its time; by default (no terminal) and
+// with -q it says nothing on stderr; -q and -v together are a bad command line.
+TEST(CliConventions, QuietAndVerbose) {
+  const std::string exe = loom::test::bake_exe();
+  const std::string atlas = (loom::test::scratch("quiet-verbose") / "a.atlas").string();
+  for (const char* flags : {"-q", "", "-v"}) {
+    std::string err;  // stderr alone: stdout to /dev/null
+    ASSERT_EQ(loom::test::run(exe + " " + flags + " bake plain --quality draft --force -o " +
+                                  atlas + " 2>&1 1>/dev/null",
+                              &err),
+              0)
+        << flags << ": " << err;
+    if (std::string(flags) != "-v") {
+      EXPECT_TRUE(err.empty()) << flags << ": " << err;
+      continue;
+    }
+    size_t lines = 0;
+    for (size_t p = err.find("loom-bake: "); p != std::string::npos;
+         p = err.find("loom-bake: ", p + 1))
+      lines += err.find(" done (", p) != std::string::npos;
+    EXPECT_GE(lines, 3u) << err;  // the surface bake's stages, each once
+  }
+  std::string both;
+  EXPECT_EQ(loom::test::run(exe + " -q -v presets 2>&1", &both), 2) << both;
 }
 
 }  // namespace

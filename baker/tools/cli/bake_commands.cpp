@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -10,6 +11,7 @@
 #include "command.h"
 #include "loom/atlas_writer.h"
 #include "loom/bake.h"
+#include "loom/cli_values.h"
 #include "loom/ply_maps.h"
 #include "loom/spec.h"
 #include "loom/weave.h"
@@ -34,7 +36,9 @@ void add_bake(CLI::App& app, Commands& out) {
   c->add_option("--ocio-config", a->ocio,
                 "OpenColorIO config for colour conversion (e.g. Blender's); default: $OCIO "
                 "or Loom's built-in sRGB -> linear Rec.709");
-  c->add_option("--progress", a->progress, "progress output: auto|text|json|none");
+  c->add_option("--progress", a->progress,
+                "progress output: auto|text|json|none (auto: text on a terminal, else none; "
+                "none with -q; a line per stage with its time with -v)");
   c->add_flag("--force", a->force,
               "re-bake from scratch even if the destination holds this spec's atlas, and "
               "re-simulate a ray-wave spec whose tables another atlas holds");
@@ -44,14 +48,28 @@ void add_bake(CLI::App& app, Commands& out) {
                 "siblings are always looked at");
   out.push_back({c, [a] {
     if (a->ocio.empty() && std::getenv("OCIO")) a->ocio = std::getenv("OCIO");
-    auto res = loom::load_spec(a->spec, a->quality);
-    if (!res.ok()) return report_spec_errors(a->spec, res.errors);
     std::string& mode = a->progress;
     if (mode != "auto" && mode != "text" && mode != "json" && mode != "none") {
       std::cerr << "error: --progress: \"" << mode << "\" is not one of auto, text, json, none\n";
       return 2;
     }
-    if (mode == "auto") mode = isatty(2) ? "text" : "none";
+    if (mode == "auto")
+      mode = verbosity() == 0 ? "none" : verbosity() == 2 ? "lines" : isatty(2) ? "text" : "none";
+    // With --progress=json every failure is also a JSON line on stdout, where the progress goes:
+    // {"error": what, "errors": [each problem], "exit": code} (stderr keeps the text).
+    auto fail = [&](const std::vector<std::string>& errors, int code) {
+      if (mode == "json")
+        std::cout << json{{"error", errors.size() == 1 ? errors[0]
+                                                       : fmt::format("{}: {} problems", a->spec,
+                                                                     errors.size())},
+                          {"errors", errors},
+                          {"exit", code}}
+                         .dump()
+                  << std::endl;
+      return code;
+    };
+    auto res = loom::load_spec(a->spec, a->quality);
+    if (!res.ok()) return fail(res.errors, report_spec_errors(a->spec, res.errors));
     loom::BakeOptions opt;
     opt.ocio_config = a->ocio;
     opt.force = a->force;
@@ -59,6 +77,17 @@ void add_bake(CLI::App& app, Commands& out) {
     if (mode == "json") {
       opt.progress = [](const std::string& stage, double f) {
         std::cout << json{{"stage", stage}, {"fraction", f}}.dump() << std::endl;
+      };
+    } else if (mode == "lines") {  // -v: each stage when it is done, with the time since the
+                                   // stage before it was (or since the bake began)
+      auto since = std::make_shared<std::chrono::steady_clock::time_point>(
+          std::chrono::steady_clock::now());
+      opt.progress = [since](const std::string& stage, double f) {
+        if (f < 1.0) return;
+        const auto now = std::chrono::steady_clock::now();
+        const std::chrono::duration<double> dt = now - *since;
+        *since = now;
+        std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", stage, dt.count());
       };
     } else if (mode == "text") {
       opt.progress = [](const std::string& stage, double f) {
@@ -70,9 +99,18 @@ void add_bake(CLI::App& app, Commands& out) {
       loom::check_bake_destination(a->out_dir);
     } catch (const std::runtime_error& e) {
       std::cerr << "error: -o: " << e.what() << "\n";
-      return 2;
+      return fail({std::string("-o: ") + e.what()}, 2);
     }
-    auto r = loom::bake_atlas(res.spec, a->out_dir, opt);
+    loom::BakeResult r;
+    try {
+      r = loom::bake_atlas(res.spec, a->out_dir, opt);
+    } catch (const loom::CliValueError& e) {  // (main reports these on stderr, exit 2 and 1)
+      fail({e.what()}, 2);
+      throw;
+    } catch (const std::exception& e) {
+      fail({e.what()}, 1);
+      throw;
+    }
     std::cout << json{{"atlas", r.dir.string()},
                       {"reused", r.reused},
                       {"reused_simulation", r.reused_simulation.string()},

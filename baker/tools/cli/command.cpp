@@ -22,6 +22,11 @@ CLI::Validator finite_range(double lo, double hi) {
       fmt::format("in [{}, {}]", lo, hi));
 }
 
+int& verbosity() {
+  static int level = 1;
+  return level;
+}
+
 std::string spec_help() {
   std::string names;
   for (const std::string& n : loom::preset_names()) names += (names.empty() ? "" : ", ") + n;

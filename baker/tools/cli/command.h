@@ -27,6 +27,10 @@ CLI::Validator finite_range(double lo, double hi);
 /// preset named.
 std::string spec_help();
 
+/// How much a subcommand says on stderr besides its errors: 0 with -q, 1 by default, 2 with -v
+/// (main sets it from the command line; bake: its progress and each stage's time).
+int& verbosity();
+
 /// Prints a spec's problems and "nothing was written"; returns 2.
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors);
 
