@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cctype>
 #include <string>
+#include <vector>
 
 #include "loom/spec.h"
 #include "test_util.h"
@@ -128,8 +129,9 @@ TEST(CliConventions, BakeErrorsAreJsonOnStdoutWithProgressJson) {
   EXPECT_FALSE(fs::exists(fresh));
 }
 
-// -v: a bake says each stage on a line of its own with its time; by default (no terminal) and
-// with -q it says nothing on stderr; -q and -v together are a bad command line.
+// -v: a bake says each stage once, on a line of its own with its time; by default (no terminal)
+// and with -q (also with --progress=text) it says nothing on stderr; -q and -v together are a
+// bad command line.
 TEST(CliConventions, QuietAndVerbose) {
   const std::string exe = loom::test::bake_exe();
   const std::string atlas = (loom::test::scratch("quiet-verbose") / "a.atlas").string();
@@ -144,12 +146,25 @@ TEST(CliConventions, QuietAndVerbose) {
       EXPECT_TRUE(err.empty()) << flags << ": " << err;
       continue;
     }
-    size_t lines = 0;
+    std::vector<std::string> stages;  // "loom-bake: <stage> done (<t> s)", a line each
     for (size_t p = err.find("loom-bake: "); p != std::string::npos;
-         p = err.find("loom-bake: ", p + 1))
-      lines += err.find(" done (", p) != std::string::npos;
-    EXPECT_GE(lines, 3u) << err;  // the surface bake's stages, each once
+         p = err.find("loom-bake: ", p + 1)) {
+      const size_t d = err.find(" done (", p), e = err.find('\n', p);
+      ASSERT_TRUE(d != std::string::npos && d < e) << err;
+      stages.push_back(err.substr(p + 11, d - p - 11));
+    }
+    EXPECT_GE(stages.size(), 3u) << err;  // the surface bake's stages, each once, ending with
+    std::vector<std::string> sorted = stages;  // the maps' writing
+    std::sort(sorted.begin(), sorted.end());
+    EXPECT_EQ(std::unique(sorted.begin(), sorted.end()), sorted.end()) << err;
+    EXPECT_EQ(stages.back(), "write") << err;
   }
+  std::string quiet;
+  ASSERT_EQ(loom::test::run(exe + " -q bake plain --quality draft --force --progress=text -o " +
+                                atlas + " 2>&1 1>/dev/null",
+                            &quiet),
+            0);
+  EXPECT_TRUE(quiet.empty()) << quiet;
   std::string both;
   EXPECT_EQ(loom::test::run(exe + " -q -v presets 2>&1", &both), 2) << both;
 }

@@ -54,7 +54,8 @@ void add_bake(CLI::App& app, Commands& out) {
       return 2;
     }
     if (mode == "auto")
-      mode = verbosity() == 0 ? "none" : verbosity() == 2 ? "lines" : isatty(2) ? "text" : "none";
+      mode = verbosity() == 2 ? "lines" : isatty(2) ? "text" : "none";
+    if (verbosity() == 0 && mode != "json") mode = "none";  // -q: nothing on stderr but errors
     // With --progress=json every failure is also a JSON line on stdout, where the progress goes:
     // {"error": what, "errors": [each problem], "exit": code} (stderr keeps the text).
     auto fail = [&](const std::vector<std::string>& errors, int code) {
@@ -70,6 +71,16 @@ void add_bake(CLI::App& app, Commands& out) {
     };
     auto res = loom::load_spec(a->spec, a->quality);
     if (!res.ok()) return fail(res.errors, report_spec_errors(a->spec, res.errors));
+    // -v's stage lines: the stage reporting now and when it began.
+    using Clock = std::chrono::steady_clock;
+    auto stage_now = std::make_shared<std::pair<std::string, Clock::time_point>>("", Clock::now());
+    auto end_stage = [](std::pair<std::string, Clock::time_point>& s) {
+      const auto now = Clock::now();
+      if (!s.first.empty())
+        std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", s.first,
+                                 std::chrono::duration<double>(now - s.second).count());
+      s.second = now;
+    };
     loom::BakeOptions opt;
     opt.ocio_config = a->ocio;
     opt.force = a->force;
@@ -78,16 +89,10 @@ void add_bake(CLI::App& app, Commands& out) {
       opt.progress = [](const std::string& stage, double f) {
         std::cout << json{{"stage", stage}, {"fraction", f}}.dump() << std::endl;
       };
-    } else if (mode == "lines") {  // -v: each stage when it is done, with the time since the
-                                   // stage before it was (or since the bake began)
-      auto since = std::make_shared<std::chrono::steady_clock::time_point>(
-          std::chrono::steady_clock::now());
-      opt.progress = [since](const std::string& stage, double f) {
-        if (f < 1.0) return;
-        const auto now = std::chrono::steady_clock::now();
-        const std::chrono::duration<double> dt = now - *since;
-        *since = now;
-        std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", stage, dt.count());
+    } else if (mode == "lines") {  // -v: each stage once, when the next begins (the last at
+                                   // the end), with its time from its first report to there
+      opt.progress = [stage_now, end_stage](const std::string& stage, double) {
+        if (stage != stage_now->first) end_stage(*stage_now), stage_now->first = stage;
       };
     } else if (mode == "text") {
       opt.progress = [](const std::string& stage, double f) {
@@ -111,6 +116,7 @@ void add_bake(CLI::App& app, Commands& out) {
       fail({e.what()}, 1);
       throw;
     }
+    if (mode == "lines") end_stage(*stage_now);
     std::cout << json{{"atlas", r.dir.string()},
                       {"reused", r.reused},
                       {"reused_simulation", r.reused_simulation.string()},

@@ -21,10 +21,9 @@
 // LOOM_ASG_INTEGRAL_WIDTHS / sqrt(hi))) (what lies beyond is below exp(-20)), with
 // LOOM_ASG_INTEGRAL_STEPS points: the integrand is even about 0 (and, when Psi = pi / 2, about
 // pi / 2), so the rule converges spectrally; relative error below 1e-5 over all mu (tested against
-// brute-force quadrature over the sphere). erf is asg_erf (Abramowitz and Stegun 7.1.26), so that
-// node mode, which has no erf node, evaluates the same formula. (An earlier version integrated
-// over the polar angle of the disk with a fixed step; it halved the integral of very anisotropic
-// lobes, e.g. mu1 = 0, mu2 = 3000, which the fits produce.)
+// brute-force quadrature over the sphere). erf is asg_erf (Abramowitz and Stegun 7.1.26). The
+// shaders do not run this quadrature: they read the integral from a table the bake makes of it
+// (asg_integral_from_lut below).
 #ifndef LOOM_ASG_H
 #define LOOM_ASG_H
 #include "osl_compat.h"
