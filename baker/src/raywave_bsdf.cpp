@@ -323,30 +323,21 @@ void add_diffuse_closures(RaywavePoint::Impl& q, const RaywaveData& d, const Poi
   const vec3 wt0 = raywave_residual_translucent_weight(ef3, q.open, kf, q.s);
   const vec3 r = raywave_energy_budget(wlt0 + wld0 + wd0 + wt0, used, q.open);
   const vec3 wlt = wlt0 * r, wld = wld0 * r, wd = wd0 * r, wt = wt0 * r;
-  RaywaveClosure layer_t, layer_d;
-  layer_t.kind = 1;
-  layer_d.kind = 3;
-  layer_t.N = layer_d.N = vec3(0, 0, 1);
-  layer_t.weight = {wlt.x, wlt.y, wlt.z};
-  layer_d.weight = {wld.x, wld.y, wld.z};
-  for (int c = 0; c < 3; ++c) {
-    q.transl_w[size_t(c)] += layer_t.weight[size_t(c)];
-    q.diffuse_w[size_t(c)] += layer_d.weight[size_t(c)];
-  }
-  q.list.push_back(layer_t);
-  q.list.push_back(layer_d);
-  RaywaveClosure rd, rt;
-  rd.kind = 3;
-  rt.kind = 1;
-  rd.N = rt.N = vec3(0, 0, 1);
-  rd.weight = {wd.x, wd.y, wd.z};
-  rt.weight = {wt.x, wt.y, wt.z};
-  for (int c = 0; c < 3; ++c) {
-    q.diffuse_w[size_t(c)] += rd.weight[size_t(c)];
-    q.transl_w[size_t(c)] += rt.weight[size_t(c)];
-  }
-  q.list.push_back(rd);
-  q.list.push_back(rt);
+  // Translucent (kind 1) and diffuse (kind 3) closures, in this order: the layers' pair, then
+  // the residual's (raywave_mapping_by_kind reads them by position).
+  auto lambert = [&q](int kind, vec3 w) {
+    RaywaveClosure cl;
+    cl.kind = kind;
+    cl.N = vec3(0, 0, 1);
+    cl.weight = {w.x, w.y, w.z};
+    std::array<float, 3>& sum = kind == 1 ? q.transl_w : q.diffuse_w;
+    for (size_t c = 0; c < 3; ++c) sum[c] += cl.weight[c];
+    q.list.push_back(cl);
+  };
+  lambert(1, wlt);
+  lambert(3, wld);
+  lambert(3, wd);
+  lambert(1, wt);
   RaywaveClosure tp;
   tp.kind = 4;
   tp.N = vec3(0, 0, 1);
