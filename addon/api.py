@@ -62,7 +62,8 @@ def bake(spec: str, quality: str = "preview", loom_bake: str | None = None,
 
 
 def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, *,
-           size_factor: float = 1.0, material=None, interpolation: str = "Linear", scene=None):
+           size_factor: float = 1.0, material=None, interpolation: str = "Linear", scene=None,
+           average: float | None = None):
     """Build a Loom material for ``atlas_dir`` on ``obj`` and return it.
 
     mode: "auto" (OSL where it can run, else nodes), "osl" (falls back to nodes, with the
@@ -72,6 +73,9 @@ def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, 
     material: the material to (re)build; default the object's active material if Loom manages
     it (see material.is_loom_material), else a new one in the active slot.
     interpolation: atlas map filtering, "Linear" (default) or "Closest" (whole texels).
+    average: the material's Average (1: the repeat-averaged closures, 0: every texel's); None
+    drives it by the camera distance (scene_needs.average_drive: averaged where a repeat spans
+    less than 2 pixels).
     What was done (mode and why) is printed and available from ``last_assign()``.
     """
     scene = scene or bpy.context.scene
@@ -82,6 +86,9 @@ def assign(obj, atlas_dir: str, mode: str = "auto", scale: float | None = None, 
     mat = _material.ensure_material(obj, material)
     res = _material.build_material(mat, atlas_dir, mode=mode, scale=float(scale), scene=scene,
                                    interpolation=interpolation)
+    drive = (_scene_needs.average_drive(obj, scene, float(scale)) if average is None else
+             {"kind": "constant", "value": float(average), "reason": "given"})
+    _material.set_average(mat, drive)
     if hasattr(mat, "loom"):
         mat.loom.scale_mode = "REPEATS"
         mat.loom.repeats = float(scale)

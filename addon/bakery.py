@@ -274,6 +274,7 @@ class BakeStatus:
     reused: bool = False
     seconds: float = 0.0
     log: list[str] = field(default_factory=list)
+    peak: float = 0.0  # the furthest the bake got (overall never goes back)
 
     @property
     def finished(self) -> bool:
@@ -282,17 +283,17 @@ class BakeStatus:
     @property
     def overall(self) -> float:
         """A monotone 0..1 progress for a progress bar: check is instant, the bake's stages are
-        weighted evenly in the order loom-bake runs them."""
+        weighted evenly in the order loom-bake runs them (the ray-wave tier's stages between
+        write and average hold the bar where write left it)."""
         if self.state == "done":
             return 1.0
         if self.state != "baking":
             return 0.0
-        order = ("ply maps", "horizon", "closure lut", "write")
-        try:
-            i = order.index(self.stage)
-        except ValueError:
-            return 0.0
-        return (i + max(0.0, min(1.0, self.fraction))) / len(order)
+        order = ("ply maps", "horizon", "closure lut", "write", "average")
+        if self.stage in order:
+            at = (order.index(self.stage) + max(0.0, min(1.0, self.fraction))) / len(order)
+            self.peak = max(self.peak, at)
+        return self.peak
 
 
 class BakeJob:

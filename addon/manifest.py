@@ -14,6 +14,9 @@ from . import osl_source
 SURFACE_MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
                 "spec_params", "horizon_0", "horizon_1")
 SURFACE_LUT = "closure_lut"
+# The repeat-averaged closures both tiers read far away (average_closures.h; the manifest's
+# "average" section names it).
+AVERAGE_TEXTURE = "average_closures"
 RAYWAVE_MAPS = ("ply_frame", "ply_normal", "yarn_info", "horizon_0", "horizon_1")
 # The lobe tables' layout the ray-wave shaders read: the manifest's
 # raywave.yarns.<yarn>.node_layout, as loom-bake writes it (ply_tables.h: kAsgNodeLayout).
@@ -53,10 +56,13 @@ def atlas_problem(atlas_dir: str) -> str | None:
     except (OSError, ValueError, KeyError) as exc:
         return f"unreadable manifest: {exc}"
     tier = manifest.get("tier", "surface")
+    if tier not in ("surface", "raywave"):
+        return tier_problem(tier)
+    problem = average_problem(manifest)
+    if problem:
+        return problem
     if tier == "raywave":
         return raywave_problem(manifest)
-    if tier != "surface":
-        return tier_problem(tier)
     missing = [m for m in (*SURFACE_MAPS, SURFACE_LUT) if m not in textures]
     if missing:
         return f"maps missing: {', '.join(missing)}"
@@ -68,6 +74,39 @@ def atlas_problem(atlas_dir: str) -> str | None:
     if got != want:
         return f"closure LUT is {got}, the shaders expect {want}"
     return None
+
+
+def average_problem(manifest: dict) -> str | None:
+    """None if the atlas holds the repeat-averaged closures in the layout average_closures.h
+    reads, else why not."""
+    avg = manifest.get("average")
+    tex = manifest.get("textures", {}).get(AVERAGE_TEXTURE)
+    if not isinstance(avg, dict) or tex is None:
+        return ("no repeat-averaged closures (the manifest's \"average\"; an atlas of an "
+                "older loom-bake): re-bake the atlas with this version of loom-bake")
+    K = osl_source.required_constants(("LOOM_AVERAGE_THETA", "LOOM_AVERAGE_PHI",
+                                       "LOOM_AVERAGE_PANELS"))
+    want = [int(K["LOOM_AVERAGE_PHI"]) + 1,
+            2 * int(K["LOOM_AVERAGE_PANELS"]) * int(K["LOOM_AVERAGE_THETA"])]
+    got = list(tex.get("size", []))
+    if got != want:
+        return f"averaged closures are {got}, the shaders expect {want}: re-bake the atlas"
+    gap = avg.get("gap_mean")
+    if not isinstance(gap, (int, float)) or not 0.0 <= gap < 1.0:
+        return f"average.gap_mean is {gap!r}, expected a number in [0, 1)"
+    return None
+
+
+def average_gap_mean(manifest: dict) -> float:
+    """The repeat's mean open fraction (average_closures_yarn_scale's gap_mean)."""
+    return float(manifest["average"]["gap_mean"])
+
+
+def average_osl_parameters(manifest: dict) -> tuple[dict, dict]:
+    """(texture parameters -> atlas texture names, other parameters -> values) of the averaged
+    closures in both tiers' OSL shaders."""
+    return ({"average_closures_table": AVERAGE_TEXTURE},
+            {"average_gap_mean": average_gap_mean(manifest)})
 
 
 # ======================================================================= ray-wave atlases
@@ -241,6 +280,9 @@ def raywave_osl_parameters(manifest: dict) -> tuple[dict, dict]:
     if nz:  # (without: the shader's defaults, empty names, give no noise)
         tex["noise_refl"], tex["noise_high"] = nz["refl"], nz["high"]
         values["noise_instances"] = nz["instances"]
+    avg_tex, avg_values = average_osl_parameters(manifest)
+    tex.update(avg_tex)
+    values.update(avg_values)
     dif = raywave_diffraction(manifest)
     if dif:  # (without: the shader's defaults, diffraction_tiles_x = 0, give delta transmission)
         tex["diffraction_gap_sampling"] = dif["file"]

@@ -278,6 +278,11 @@ def _build_osl(mat, atlas_dir, manifest, scale):
             script.inputs[name].default_value = value
     else:
         params = {name: name for name in manifest["textures"]}
+        avg_tex, avg_values = _manifest.average_osl_parameters(manifest)
+        params.update(avg_tex)
+        for name, value in avg_values.items():
+            if name in script.inputs:
+                script.inputs[name].default_value = value
     files = {param: manifest["textures"][name]["file"] for param, name in params.items()
              if param in script.inputs}
     for name, file in files.items():
@@ -309,6 +314,44 @@ def set_scale(mat, scale: float) -> bool:
             node.inputs["Scale"].default_value = scale
             return True
     return False
+
+
+AVERAGE_NODES = ("Loom Average distance", "Loom Average ramp")
+
+
+def set_average(mat, drive: dict) -> bool:
+    """Drive a built Loom material's Average input (the repeat-averaged closures far away) as
+    ``drive`` says (scene_needs.average_drive): a Camera Data distance through a Map Range, or
+    a constant. The nodes it adds are named AVERAGE_NODES and replaced on the next call."""
+    if mat is None or not mat.use_nodes:
+        return False
+    nt = mat.node_tree
+    target = next((n for n in nt.nodes if n.name in NODE_NAMES and "Average" in n.inputs), None)
+    if target is None:
+        return False
+    for name in AVERAGE_NODES:
+        old = nt.nodes.get(name)
+        if old is not None:
+            nt.nodes.remove(old)
+    socket = target.inputs["Average"]
+    if drive.get("kind") != "distance":
+        socket.default_value = float(drive.get("value", 0.0))
+        return True
+    cam = nt.nodes.new("ShaderNodeCameraData")
+    cam.name = cam.label = AVERAGE_NODES[0]
+    cam.location = (target.location.x - 500, target.location.y - 300)
+    ramp = nt.nodes.new("ShaderNodeMapRange")
+    ramp.name = AVERAGE_NODES[1]
+    ramp.label = "Average: 0 near, 1 far (repeat 2 px -> 1 px)"
+    ramp.location = (target.location.x - 280, target.location.y - 300)
+    ramp.clamp = True
+    ramp.inputs["From Min"].default_value = float(drive["near"])
+    ramp.inputs["From Max"].default_value = float(drive["far"])
+    ramp.inputs["To Min"].default_value = 0.0
+    ramp.inputs["To Max"].default_value = 1.0
+    nt.links.new(cam.outputs["View Distance"], ramp.inputs["Value"])
+    nt.links.new(ramp.outputs["Result"], socket)
+    return True
 
 
 # ----------------------------------------------------------------------------------- scale

@@ -41,7 +41,10 @@ import os
 import bpy
 
 from . import osl_source
+from .manifest import AVERAGE_TEXTURE, average_gap_mean
 from .manifest import SURFACE_LUT as LUT, SURFACE_MAPS as MAPS, repeat_aspect
+from .node_average import REQUIRED_CONSTANTS as AVERAGE_CONSTANTS, build_average_closures
+from .node_bsdf import ggx_glossy
 from .node_texel_guard import texel_guard_geometry, texel_guard_horizon, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
@@ -62,7 +65,7 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSUR
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "678a0546758dcd7e",
-    "loom_cloth_surface.osl": "9bc0ad51daaafa6c",
+    "loom_cloth_surface.osl": "dc27d314bce25b8b",
 }
 
 
@@ -188,15 +191,32 @@ def surface_closure_weights(c, w, k_rs, k_rd, k_ts, k_td, vis_v, vis_amb, vis_gl
             w_hair)
 
 
-# ======================================================================= Cycles glossy node
+# ======================================================================= group inputs
 
 
-def glossy_node_inputs(ax, ay):
-    """Roughness and Anisotropy of a GGX Glossy BSDF node giving alpha_x = ax (along its Tangent)
-    and alpha_y = ay; see the module docstring for Cycles' mapping: Roughness = (ax ay)^(1/4),
-    Anisotropy = 1 - sqrt(ax / ay) when ax <= ay, else sqrt(ay / ax) - 1."""
-    r = sqrt(ax / ay)
-    return sqrt(sqrt(ax * ay)), select(ax > ay, 1.0 / r - 1.0, 1.0 - r)
+def describe_inputs(group) -> None:
+    """Defaults, ranges and tooltips of the inputs both tiers' groups share."""
+    s_in = group.interface.items_tree["Scale"]
+    s_in.default_value = 1.0
+    s_in.min_value = 0.0
+    s_in.description = "weave repeats per UV unit"
+    a_in = group.interface.items_tree["Average"]
+    a_in.default_value = 0.0
+    a_in.min_value = 0.0
+    a_in.max_value = 1.0
+    a_in.description = ("1: the weave repeat's averaged closures (cloth far away, a few "
+                        "look-ups); 0: every texel's closures; Bake & Assign drives it by the "
+                        "camera distance")
+
+
+def mix_average(b, average_socket, yarns, far):
+    """Mix Shader of the texels' yarn closures and the averaged ones by the Average input:
+    Cycles' SVM jumps over the input of weight 0 and the nodes only it needs."""
+    mix = b.new("ShaderNodeMixShader", label="Average: texels (0) or averaged (1)")
+    b.connect(average_socket, mix.inputs["Fac"])
+    b.connect(yarns, mix.inputs[1])
+    b.connect(far, mix.inputs[2])
+    return mix.outputs["Shader"]
 
 
 # ======================================================================= images
@@ -253,12 +273,9 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     if group is None or group.bl_idname != "ShaderNodeTree":
         group = bpy.data.node_groups.new(name, "ShaderNodeTree")
     group.nodes.clear()
-    sync_sockets(group, "INPUT", [("Scale", "NodeSocketFloat")])
+    sync_sockets(group, "INPUT", [("Scale", "NodeSocketFloat"), ("Average", "NodeSocketFloat")])
     sync_sockets(group, "OUTPUT", [("BSDF", "NodeSocketShader")])
-    s_in = group.interface.items_tree["Scale"]
-    s_in.default_value = 1.0
-    s_in.min_value = 0.0
-    s_in.description = "weave repeats per UV unit"
+    describe_inputs(group)
     group["loom_atlas"] = os.path.abspath(atlas_dir)
     group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
     group.description = f"Loom surface cloth from atlas {os.path.abspath(atlas_dir)}"
@@ -369,16 +386,13 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                        (w_glossy, "w_glossy"), (w_hair, "w_hair")):
             b.label(e, txt)
 
-    with b.block("Closure normals and tangents in world space, glossy node inputs "
+    with b.block("Closure normals and tangents in world space "
                  "(loom_cloth_surface.osl)"):
         np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
         nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
         t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
         tt = surface_transmission_tangent(t, back)
         tt_w = b.label(normalize(T * tt.x + B * tt.y + N * tt.z), "transmission tangent world")
-        rough, aniso = glossy_node_inputs(refl.y, refl.z)
-        b.label(rough, "Roughness = (ax ay)^(1/4)")
-        b.label(aniso, "Anisotropy")
 
     # ---------------------------------------------------------------- closures
     with b.block("Closures (closure_mapping.h table)"):
@@ -396,14 +410,8 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.link(np_w, t_np.inputs["Normal"])
         t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
         b.link(w_tns, t_ns.inputs["Color"])
-        gl = b.new("ShaderNodeBsdfGlossy", distribution="GGX",
-                   label='microfacet("ggx", N_c, t, ax, ay) * w_glossy')
-        b.link(vec(w_glossy, w_glossy, w_glossy), gl.inputs["Color"])
-        b.link(rough, gl.inputs["Roughness"])
-        b.link(aniso, gl.inputs["Anisotropy"])
-        b.link(0.0, gl.inputs["Rotation"])
-        b.link(nc_w, gl.inputs["Normal"])
-        b.link(t_w, gl.inputs["Tangent"])
+        gl = ggx_glossy(b, 'microfacet("ggx", N_c, t, ax, ay) * w_glossy',
+                        vec(w_glossy, w_glossy, w_glossy), refl.y, refl.z, nc_w, t_w)
         hair = b.new("ShaderNodeBsdfHair", component="Transmission",
                      label="hair_transmission(N, r1, r2, t, 0) * w_hair")
         b.link(vec(w_hair, w_hair, w_hair), hair.inputs["Color"])
@@ -411,10 +419,16 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.link(trans.y, hair.inputs["RoughnessU"])
         b.link(trans.z, hair.inputs["RoughnessV"])
         b.link(tt_w, hair.inputs["Tangent"])
-        total = b.add_shaders(n.outputs["BSDF"] for n in (transp, d_np, d_ns, t_np, t_ns, gl,
-                                                          hair))
+        yarns = b.add_shaders(n.outputs["BSDF"] for n in (d_np, d_ns, t_np, t_ns, gl, hair))
+
+    far = build_average_closures(b, load_atlas_image(atlas_dir, manifest, AVERAGE_TEXTURE, label),
+                                 V_, back, T, N, Vw, a_info, average_gap_mean(manifest),
+                                 constants(AVERAGE_CONSTANTS))
+    with b.block("Average: the texels' yarn closures (0) or the repeat-averaged ones (1)"):
         gout = b.new("NodeGroupOutput")
-        b.connect(total, gout.inputs["BSDF"])
+        b.connect(b.add_shaders((transp.outputs["BSDF"],
+                                 mix_average(b, gin.outputs["Average"], yarns, far))),
+                  gout.inputs["BSDF"])
 
     b.layout()
     return group

@@ -48,6 +48,8 @@ import os
 import bpy
 
 from . import manifest as _manifest, node_mode, node_texel_guard, node_visibility
+from .manifest import AVERAGE_TEXTURE
+from .node_average import REQUIRED_CONSTANTS as AVERAGE_CONSTANTS, build_average_closures
 from .node_raywave_lobes import (asg_frame, asg_integral_from_lut, asg_integral_lut_uv,
                                  asg_node_coord, asg_node_uv, asg_tint_uv, double_layer_uv,
                                  microfacet_albedo_uv, raywave_energy_budget,
@@ -56,8 +58,8 @@ from .node_raywave_lobes import (asg_frame, asg_integral_from_lut, asg_integral_
                                  raywave_lobe_weights, raywave_ply_space,
                                  raywave_residual_diffuse_weight,
                                  raywave_residual_translucent_weight, raywave_residual_uv)
-from .node_wave import (diffraction_cell_row, diffraction_gap_offset, diffraction_light_direction,
-                        diffraction_lobe_closure, diffraction_lobe_weight, diffraction_sample_uv,
+from .node_wave import (diffraction_cell_row, diffraction_gap_offset, diffraction_gap_sampled,
+                        diffraction_light_direction, diffraction_lobe_closure, diffraction_lobe_weight, diffraction_sample_uv,
                         diffraction_split, diffraction_stratum, diffraction_table_s,
                         diffraction_tile_pick, noise_lobe_uv, noise_pick)
 from .nodes_expr import (Builder, cos, cross, dot, floor, max_, normalize, select, sin, sqrt,
@@ -73,7 +75,8 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
                       "LOOM_MICROFACET_ALBEDO_SIZE", "LOOM_ASG_INTEGRAL_LUT_SIZE", "LOOM_ASG_MU_MAX",
                       "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_DIFFRACTION_S_MAX",
                       "LOOM_DIFFRACTION_ICDF_SIZE", "LOOM_DIFFRACTION_KERNEL_RAD",
-                      "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_SAMPLES",
+                      "LOOM_DIFFRACTION_MIN_COS", "LOOM_DIFFRACTION_MIN_GAP",
+                      "LOOM_DIFFRACTION_SAMPLES",
                       "LOOM_NOISE_SEGMENTS_PER_REPEAT", "LOOM_NOISE_HASH_MOD", "LOOM_NOISE_LEVELS",
                       "LOOM_DOUBLE_LAYER_BLOCKS")
 
@@ -81,7 +84,7 @@ REQUIRED_CONSTANTS = ("LOOM_RAYWAVE_PARTS", "LOOM_RAYWAVE_MIN_ALPHA", "LOOM_RAYW
 # checks it). The headers: node_raywave_lobes.py, node_wave.py, node_texel_guard.py,
 # node_visibility.py.
 TRANSCRIBED_FROM = {
-    "loom_cloth_raywave.osl": "407aed919a31d683",
+    "loom_cloth_raywave.osl": "b70a6e638c7f102e",
 }
 
 
@@ -286,12 +289,10 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         lobe_groups = {"refl": one, "high": one}
     for lg in lobe_groups.values():
         lg["loom_atlas"] = os.path.abspath(atlas_dir)
-    group = _new_group(name, (("Scale", "NodeSocketFloat"),), (("BSDF", "NodeSocketShader"),),
+    group = _new_group(name, (("Scale", "NodeSocketFloat"), ("Average", "NodeSocketFloat")),
+                       (("BSDF", "NodeSocketShader"),),
                        f"Loom ray-wave cloth from atlas {os.path.abspath(atlas_dir)}")
-    s_in = group.interface.items_tree["Scale"]
-    s_in.default_value = 1.0
-    s_in.min_value = 0.0
-    s_in.description = "weave repeats per UV unit"
+    node_mode.describe_inputs(group)
     group["loom_atlas"] = os.path.abspath(atlas_dir)
     group["loom_spec_sha256"] = str(manifest.get("spec_sha256", ""))
     group["loom_tier"] = "raywave"
@@ -528,18 +529,27 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         # The gaps' closures behind a Mix Shader whose factor is 1 in a gap and 0 elsewhere:
         # Cycles' SVM compiler jumps over a mix input of weight 0 and over the nodes only it
         # needs (SVMCompiler::generate_multi_closure), so yarn points skip the diffraction
-        # sampling (the OSL shader's `if (gap > 0.0 ...)`); where it runs the factor is 1 and
-        # the weights are unchanged.
+        # sampling (the OSL shader's `if (diffraction_gap_sampled(gap) ...)`: Blender reads a
+        # stored coverage of 0 as a tiny positive value, so `gap > 0` would run it everywhere);
+        # where it runs the factor is 1 and the weights are unchanged.
         gap_closures = b.add_shaders((*gap_lobes, transp.outputs["BSDF"]))
         if gap_lobes:
-            mix = b.new("ShaderNodeMixShader", label="gap > 0: the gaps' closures, else none")
-            b.link(gap > 0.0, mix.inputs["Fac"])
+            mix = b.new("ShaderNodeMixShader",
+                        label="diffraction_gap_sampled: the gaps' closures, else none")
+            b.link(diffraction_gap_sampled(gap, K), mix.inputs["Fac"])
             b.connect(gap_closures, mix.inputs[2])
             gap_closures = mix.outputs["Shader"]
-        total = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs), gap_closures,
+        yarns = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs),
                                tr.outputs["BSDF"], dif_node.outputs["BSDF"]))
+
+    far = build_average_closures(b, image(AVERAGE_TEXTURE), V_, back, T, Nw, Vw, a_info,
+                                 _manifest.average_gap_mean(manifest),
+                                 node_mode.constants(AVERAGE_CONSTANTS))
+    with b.block("Average: the texels' yarn closures (0) or the repeat-averaged ones (1)"):
         gout = b.new("NodeGroupOutput")
-        b.connect(total, gout.inputs["BSDF"])
+        b.connect(b.add_shaders((node_mode.mix_average(b, gin.outputs["Average"], yarns, far),
+                                 gap_closures)),
+                  gout.inputs["BSDF"])
 
     b.layout()
     return group

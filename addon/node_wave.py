@@ -15,7 +15,7 @@ from .nodes_expr import (asin, atan2, clamp, fabs, floor, length, max_, min_, no
 # checks it).
 TRANSCRIBED_FROM = {
     "include/loom/diffraction_table.h": "452b37e1478a3fd5",
-    "include/loom/diffraction_sampling.h": "4552302033af31ad",
+    "include/loom/diffraction_sampling.h": "4d46b702270699dc",
     "include/loom/speckle_noise.h": "db12339f3a287d00",
 }
 
@@ -33,6 +33,11 @@ def diffraction_obliquity(xi_i, xi_o):
 def diffraction_table_s(t, K):
     """diffraction_table.h: diffraction_table_s(t) = S_MAX t^2."""
     return K["LOOM_DIFFRACTION_S_MAX"] * t * t
+
+
+def diffraction_gap_sampled(gap, K):
+    """diffraction_sampling.h: diffraction_gap_sampled(gap) = gap > LOOM_DIFFRACTION_MIN_GAP."""
+    return gap > K["LOOM_DIFFRACTION_MIN_GAP"]
 
 
 def diffraction_gap_offset(coord, yarns, gap_fraction):

@@ -86,7 +86,10 @@ def apply_atlas(context, mat, obj, atlas_dir: str) -> material.AssignResult:
     if s.scale_mode == "PHYSICAL":
         scale = material.physical_repeats(obj, manifest, s.size_factor)
     material.mark_managed(mat)
-    return material.build_material(mat, atlas_dir, mode=s.mode, scale=scale, scene=context.scene)
+    res = material.build_material(mat, atlas_dir, mode=s.mode, scale=scale, scene=context.scene)
+    # Far away (a repeat under 2 pixels) the repeat-averaged closures, by the camera distance.
+    material.set_average(mat, scene_needs.average_drive(obj, context.scene, scale))
+    return res
 
 
 def _report_result(op, res: material.AssignResult):

@@ -91,6 +91,40 @@ def pixels_per_metre(scene, camera, point) -> float:
     return width_px * cam.lens / (sensor * depth)
 
 
+# The repeat-averaged closures (average_closures.h) take over where one weave repeat spans
+# fewer pixels than AVERAGE_FROM_PX, fully at AVERAGE_FULL_PX and below.
+AVERAGE_FROM_PX = 2.0
+AVERAGE_FULL_PX = 1.0
+
+
+def average_drive(obj, scene, scale: float) -> dict:
+    """How a Loom material's Average input follows the camera on ``obj`` at ``scale`` repeats
+    per UV unit: {"kind": "distance", "near": d, "far": d} (metres: a perspective camera, the
+    averaged closures ramp in from where a repeat spans AVERAGE_FROM_PX pixels to where it
+    spans AVERAGE_FULL_PX), {"kind": "constant", "value": v} (an orthographic camera: one
+    footprint everywhere; or no camera or UV map: 0, every texel), with a "reason"."""
+    camera = scene.camera if scene is not None else None
+    meters = material.uv_meters_per_unit(obj) if obj is not None else None
+    if camera is None or not meters or scale <= 0.0:
+        why = "no scene camera" if camera is None else "no UV size"
+        return {"kind": "constant", "value": 0.0, "reason": f"{why}: every texel shaded"}
+    repeat_m = meters / scale
+    _normal, centre = _plane(obj)
+    ppm = pixels_per_metre(scene, camera, centre)
+    if camera.data.type == "ORTHO":
+        px = repeat_m * ppm
+        v = min(max((AVERAGE_FROM_PX - px) / (AVERAGE_FROM_PX - AVERAGE_FULL_PX), 0.0), 1.0)
+        return {"kind": "constant", "value": v,
+                "reason": f"orthographic camera: a repeat spans {px:.2g} px"}
+    if ppm <= 0.0:
+        return {"kind": "constant", "value": 0.0, "reason": "the cloth is behind the camera"}
+    # Perspective: pixels per repeat fall as 1 / distance: k / d.
+    k = repeat_m * ppm * (centre - camera.matrix_world.translation).length
+    return {"kind": "distance", "near": k / AVERAGE_FROM_PX, "far": k / AVERAGE_FULL_PX,
+            "reason": f"a repeat spans {AVERAGE_FROM_PX:g} px at {k / AVERAGE_FROM_PX:.3g} m "
+                      f"from the camera"}
+
+
 def _luminance(c) -> float:
     return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 

@@ -55,6 +55,13 @@ def extra_args(p):
     p.add_argument("--noise-floor", action="store_true")
     p.add_argument("--images", default=None, help="directory for each material's render")
     p.add_argument("--json", default=None)
+    p.add_argument("--average", default="auto",
+                   help="the Loom materials' Average: auto (driven by the camera, "
+                        "scene_needs.average_drive) or a number in [0, 1] (1: the "
+                        "repeat-averaged closures)")
+    p.add_argument("--ortho-scale", type=float, default=0.05,
+                   help="metres the camera sees across (0.05: weave resolved; 1 and more: "
+                        "many repeats a pixel)")
 
 
 def principled_sheen():
@@ -113,7 +120,7 @@ def main():
     plane = lt.add_plane("Swatch", half=2.0, uv_per_meter=1.0)
     cam_data = bpy.data.cameras.new("Ortho")
     cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 0.05
+    cam_data.ortho_scale = args.ortho_scale
     cam = bpy.data.objects.new("Camera", cam_data)
     cam.location = (0.0, -0.3, 0.95)
     lt.look_along(cam, (0.0, 0.3, -0.95))
@@ -128,8 +135,9 @@ def main():
     for item in args.atlases:
         name, atlas = item.split("=", 1)
         t0 = time.monotonic()
-        materials[name] = loom.api.assign(plane, atlas, mode="nodes", scale=None,
-                                          material=bpy.data.materials.new(name))
+        materials[name] = loom.api.assign(
+            plane, atlas, mode="nodes", scale=None, material=bpy.data.materials.new(name),
+            average=None if args.average == "auto" else float(args.average))
         print(f"loom-bench: {name}: material built in {time.monotonic() - t0:.2f} s", flush=True)
     if args.noise_floor and args.reference is None:
         raise SystemExit("--noise-floor: needs --reference NAME (the material rendered again)")

@@ -141,6 +141,29 @@ void check_raywave_fields(const json& m, std::vector<std::string>& errors) {
 
 /// validate_atlas, keeping in `node_files` (when given) the bytes of every texture's node_file
 /// it hashed and checked, by texture name, for load_atlas to decode.
+/// The repeat-averaged closures (average_fit.h; optional: readers that need them say so): a
+/// texture of the atlas in average_closures.h's layout and the repeat's mean gap.
+void check_average_fields(const json& m, const json& tex, std::vector<std::string>& errors) {
+  if (!m.contains("average")) return;
+  FieldChecks f{errors};
+  const json& a = m["average"];
+  if (!a.is_object()) {
+    errors.push_back("average: expected an object");
+    return;
+  }
+  if (f.string(a, "texture", "average.texture", true)) {
+    const std::string name = a["texture"].get<std::string>();
+    const json want = {LOOM_AVERAGE_PHI + 1, 2 * LOOM_AVERAGE_PANELS * LOOM_AVERAGE_THETA};
+    if (!tex.contains(name))
+      errors.push_back("average.texture: not a texture of the atlas");
+    else if (tex[name].value("size", json()) != want)
+      errors.push_back(fmt::format("textures.{}: size {} is not {} (average_closures.h's layout: "
+                                   "re-bake the atlas)",
+                                   name, tex[name].value("size", json()).dump(), want.dump()));
+  }
+  f.number(a, "gap_mean", "average.gap_mean", 0.0, 0.999);
+}
+
 std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifest_out,
                                               std::map<std::string, AtlasFile>* node_files) {
   std::vector<std::string> errors;
@@ -259,6 +282,7 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
   }
   if (m.contains("tier") && !m["tier"].is_string())
     errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));
+  check_average_fields(m, tex, errors);
   // Ray-wave atlases: every yarn's tables are textures of this atlas.
   if (m.contains("tier") && m["tier"] == "raywave") {
     if (!m.contains("raywave") || !m["raywave"].is_object() || !m["raywave"].contains("yarns") ||

@@ -128,6 +128,15 @@ json AtlasWriter::hashed_textures() const {
   return out;
 }
 
+Atlas AtlasWriter::load_written(const json& manifest) const {
+  {
+    std::ofstream out(tmp_ / "manifest.json");
+    out << manifest.dump(2) << "\n";
+    if (!out) throw std::runtime_error("writing manifest.json failed");
+  }
+  return load_atlas(tmp_);
+}
+
 bool AtlasWriter::publish(const json& manifest, const std::string& bake_key, bool force) {
   {
     std::ofstream out(tmp_ / "manifest.json");

@@ -10,6 +10,7 @@
 #include "bake_stages.h"
 #include "loom/closure_lut.h"
 #include "loom/atlas_writer.h"
+#include "loom/average_fit.h"
 #include "loom/colour.h"
 #include "loom/ply_maps.h"
 
@@ -139,6 +140,24 @@ json bake_surface_stage(const BakeContext& ctx) {
           {"size_um", {maps.repeat_um[0], maps.repeat_um[1]}}};
 }
 
+/// The repeat-averaged closures (average_fit.h), fitted against the atlas as written so far;
+/// adds their texture and the manifest's "average" section.
+void bake_average_stage(const BakeContext& ctx, json& manifest) {
+  const Atlas a = ctx.out.load_written(manifest);
+  const AverageFitOptions o = average_fit_options(to_string(ctx.spec.quality));
+  const AverageFit f =
+      fit_average_closures(a, o, [&](double x) { ctx.progress("average", x); });
+  ctx.out.write_table(
+      f.table, "average_closures", {"w.r", "w.g", "w.b", "alpha"},
+      fmt::format("the repeat-averaged closures (average_closures.h): {} + 1 columns of the view "
+                  "azimuth; rows by side, then panel (diffuse, translucent, GGX glossy, GGX "
+                  "refraction: its weight w, and alpha a_x, a_y, a_t, 0 in turn), then {} rows of "
+                  "cos theta_v",
+                  LOOM_AVERAGE_PHI, LOOM_AVERAGE_THETA));
+  manifest["average"] = average_manifest(f, o);
+  manifest["textures"] = ctx.out.hashed_textures();
+}
+
 BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions& opt) {
   auto t0 = std::chrono::steady_clock::now();
   fs::path dir = fs::absolute(dir_in).lexically_normal();
@@ -174,9 +193,10 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
       raywave = bake_raywave_stages(ctx, sim_key);
       if (ctx.source) res.reused_simulation = ctx.source->first;
     }
-    res.reused = out.publish(manifest_of(ctx, bake_key, repeat, out.hashed_textures(),
-                                         std::move(raywave)),
-                             bake_key, opt.force);
+    json manifest =
+        manifest_of(ctx, bake_key, repeat, out.hashed_textures(), std::move(raywave));
+    bake_average_stage(ctx, manifest);
+    res.reused = out.publish(manifest, bake_key, opt.force);
   }
   res.bytes = atlas_dir_bytes(dir);
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

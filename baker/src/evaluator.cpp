@@ -13,8 +13,6 @@ namespace loom {
 
 using namespace shading;
 
-namespace {
-
 void bilinear(const Image& img, float u, float v, float out[4]) {
   float px = u * img.width - 0.5f, py = v * img.height - 0.5f;
   int x0 = int(std::floor(px)), y0 = int(std::floor(py));
@@ -28,6 +26,8 @@ void bilinear(const Image& img, float u, float v, float out[4]) {
     out[c] = a * (1 - fy) + b * fy;
   }
 }
+
+namespace {
 
 SurfacePoint from_values(const float f[4], const float n[4], const float in[4], const float ar[4],
                          const float at[4], const float pr[4], const float h0[4],
@@ -169,15 +169,17 @@ std::array<float, 3> eval_bsdf_average(const Atlas& a, vec3 wi, vec3 wo, Evaluat
   return {float(acc[0] / n), float(acc[1] / n), float(acc[2] / n)};
 }
 
-std::vector<vec3> fibonacci_views(int n) {
+std::vector<vec3> fibonacci_sphere(int n, double z_scale) {
   std::vector<vec3> V;
   for (int k = 0; k < n; ++k) {
-    const double z = (1.0 - 2.0 * (k + 0.5) / n) * 0.99, r = std::sqrt(1 - z * z);
+    const double z = (1.0 - 2.0 * (k + 0.5) / n) * z_scale, r = std::sqrt(1 - z * z);
     const double phi = k * 2.399963229728653;  // the golden angle
     V.push_back(vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)));
   }
   return V;
 }
+
+std::vector<vec3> fibonacci_views(int n) { return fibonacci_sphere(n, 0.99); }
 
 std::vector<vec3> sphere_grid(int n) {
   std::vector<vec3> L;

@@ -345,6 +345,8 @@ void add_diffuse_closures(RaywavePoint::Impl& q, const RaywaveData& d, const Poi
     float sampled = 0;
     for (int k = 0; k < q.tiles; ++k) sampled += q.tile_w[k] * q.p_out[k][size_t(c)];
     tp.weight[size_t(c)] = (1.0f - q.open) * (1.0f - sampled);
+    // With the tables, no gap closures below LOOM_DIFFRACTION_MIN_GAP (as the shaders).
+    if (d.diffraction.present && !diffraction_gap_sampled(1.0f - q.open)) tp.weight[size_t(c)] = 0;
   }
   q.list.push_back(tp);
 }
@@ -403,7 +405,8 @@ RaywavePoint::Impl raywave_prepare(const RaywaveData& d, const SurfacePoint& p_i
   q.vis_v = q.back ? 1.0f : horizon_visibility(q.V, q.hor);
   f.side = q.back ? 1 : 0;
   for (size_t c = 0; c < 3; ++c) f.sig_layers[c] = 0.5 * (f.sigma[0][c] + f.sigma[1][c]);
-  if (gap_diffraction && d.diffraction.present && p.gap > 0) prepare_gap_diffraction(q, d, p);
+  if (gap_diffraction && d.diffraction.present && diffraction_gap_sampled(p.gap))
+    prepare_gap_diffraction(q, d, p);
   if (e == Evaluator::Model)
     prepare_model(q, d, f);
   else

@@ -50,6 +50,7 @@ int main(int argc, char** argv) {
   CLI::App& eval = *app.add_subcommand("eval", "probe an evaluator");
   eval.require_subcommand(1);
   for (auto add : {cli::add_eval_bsdf, cli::add_eval_mapping, cli::add_eval_albedo,
+                   cli::add_eval_average,
                    cli::add_eval_asg, cli::add_eval_diffraction, cli::add_eval_plysim,
                    cli::add_eval_raywave, cli::add_eval_tables, cli::add_eval_error,
                    cli::add_eval_lobes, cli::add_eval_noise, cli::add_eval_colour,

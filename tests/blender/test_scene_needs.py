@@ -81,8 +81,22 @@ def main():
     assert n["tier"] == "raywave" and abs(n["yarn_px"] - 0.3e-3 * 1920 / 0.02) < 0.05, n
     cam.data.ortho_scale = 4.0
     assert needs(cloth)["tier"] == "surface"
+    # The repeat-averaged closures (scene_needs.average_drive): a repeat spans 0.34 px at 4 m
+    # across 1920 px (all averaged), 69 px at 2 cm (none).
+    from loom import scene_needs
+    d = scene_needs.average_drive(cloth, sc, REPEATS_PER_UV)
+    assert d["kind"] == "constant" and d["value"] == 1.0, d
+    cam.data.ortho_scale = 0.02
+    d = scene_needs.average_drive(cloth, sc, REPEATS_PER_UV)
+    assert d["kind"] == "constant" and d["value"] == 0.0, d
     cam.data.type = "PERSP"
     cam.location = (0.0, 0.0, 0.05)
+    # Perspective, 50 mm on 36 mm over 1920 px: a 714.3 um repeat spans 2 px at
+    # REPEAT 1920 50 / (36 2) = 0.952 m and 1 px at twice that.
+    d = scene_needs.average_drive(cloth, sc, REPEATS_PER_UV)
+    near = REPEAT * 1e-6 * 1920 * 50 / (36 * 2)
+    assert d["kind"] == "distance" and abs(d["near"] - near) < 1e-3 * near, (d, near)
+    assert abs(d["far"] - 2 * near) < 2e-3 * near, d
 
     # A sun shining down (its -z) lights the camera's side; turned over, it lights the back.
     sun = add_light("SUN", (0.0, 0.0, 3.0))
@@ -125,6 +139,15 @@ def main():
         lines = mat.loom.needs_report.splitlines()
         assert lines[0] == "Needs: raywave tier", lines
         assert any("lit from behind by the world" in ln for ln in lines), lines
+        # Assigning drives the material's Average by the camera distance.
+        import loom.api
+        mat = loom.api.assign(cloth, args.atlas, mode="nodes", scale=REPEATS_PER_UV)
+        group = next(n for n in mat.node_tree.nodes if n.type == "GROUP")
+        links = group.inputs["Average"].links
+        assert links and links[0].from_node.bl_idname == "ShaderNodeMapRange", links
+        ramp = links[0].from_node
+        assert abs(ramp.inputs["From Min"].default_value - near) < 1e-3 * near
+        assert ramp.inputs["Value"].links[0].from_socket.name == "View Distance"
     print("scene needs: OK")
 
 

@@ -496,3 +496,26 @@ TEST(AtlasRejection, RaywaveFieldsOfTheWrongTypeAreRefusedNamingTheField) {
     EXPECT_TRUE(has(load_error(d), ed.message)) << ed.pointer;
   }
 }
+
+TEST(AtlasRejection, AveragedClosuresOfAnotherLayoutAreRefusedNamingTheField) {
+  // The repeat-averaged closures (average_fit.h): the texture a manifest names must be one of the
+  // atlas's, in average_closures.h's layout, and the mean gap a coverage.
+  const fs::path& plain = draft_atlas("plain", "surface");
+  ASSERT_TRUE(loom::validate_atlas(plain).empty());
+  const std::vector<std::pair<std::function<void(json&)>, std::string>> cases = {
+      {[](json& m) { m["average"]["texture"] = "no_such_map"; },
+       "average.texture: not a texture of the atlas"},
+      {[](json& m) { m["average"]["texture"] = "ply_frame"; }, "textures.ply_frame: size"},
+      {[](json& m) { m["average"]["texture"] = 7; }, "average.texture: expected a string"},
+      {[](json& m) { m["average"]["gap_mean"] = 1.5; }, "average.gap_mean"},
+      {[](json& m) { m["average"]["gap_mean"] = -0.1; }, "average.gap_mean"},
+      {[](json& m) { m["average"]["gap_mean"] = "half"; }, "average.gap_mean"},
+      {[](json& m) { m["average"] = 3; }, "average: expected an object"}};
+  for (const auto& [edit, field] : cases) {
+    const fs::path d = copy_atlas_dir(plain, "average.atlas");
+    edit_atlas_manifest(d, edit);
+    const std::string e = joined(loom::validate_atlas(d));
+    EXPECT_TRUE(has(e, field)) << field << ": " << e;
+    EXPECT_TRUE(has(load_error(d), field.substr(0, field.find(':'))));
+  }
+}

@@ -39,6 +39,9 @@ class AtlasWriter {
 
   /// The textures' entries with their files' hashes, as the manifest holds them.
   nlohmann::json hashed_textures() const;
+  /// The atlas as written so far, with `manifest` (its textures hashed_textures()), loaded as
+  /// every reader loads it: for the stages that fit what the atlas renders (average_fit.h).
+  Atlas load_written(const nlohmann::json& manifest) const;
   /// Writes manifest.json and publishes the temporary as the destination: renamed into place,
   /// or exchanged atomically with the older atlas there, which is then removed. If a valid atlas
   /// with `bake_key` appeared there meanwhile (a concurrent bake of the same spec) and `force`

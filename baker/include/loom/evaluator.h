@@ -30,6 +30,9 @@ struct SurfacePoint {
 /// Bilinear, periodic sample at (u, v) (v from the bottom, any real value: wrapped), with the
 /// same filtering as a Blender image texture (linear, repeat); tangent and normal renormalised.
 SurfacePoint sample_surface(const Atlas& a, float u, float v);
+/// An image read as a Linear, repeating image texture reads it: bilinear between texel centres,
+/// at (u, v) with v from the bottom, wrapped; out[0 .. channels - 1].
+void bilinear(const Image& img, float u, float v, float out[4]);
 /// The exact texel (ix, iy) (row iy from the bottom).
 SurfacePoint texel_surface(const Atlas& a, int ix, int iy);
 
@@ -56,6 +59,9 @@ std::array<float, 3> eval_bsdf_average(const Atlas& a, shading::vec3 wi, shading
 /// n directions on both sides of the cloth (|z| <= 0.99). Lights: the midpoint grid of
 /// n x 2n cells uniform in z and phi, each of solid angle sphere_grid_dw(n).
 std::vector<shading::vec3> fibonacci_views(int n);
+/// n directions of a spherical Fibonacci lattice, z scaled by z_scale (1: the whole sphere,
+/// each direction of solid angle 4 pi / n; fibonacci_views is it at 0.99).
+std::vector<shading::vec3> fibonacci_sphere(int n, double z_scale = 1.0);
 std::vector<shading::vec3> sphere_grid(int n);
 inline double sphere_grid_dw(int n) { return (2.0 / n) * (M_PI / n); }
 

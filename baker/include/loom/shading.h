@@ -18,4 +18,5 @@ namespace loom::shading {
 #include "../../../osl/include/loom/raywave_lobes.h"
 #include "../../../osl/include/loom/double_layer_factors.h"
 #include "../../../osl/include/loom/diffraction_sampling.h"
+#include "../../../osl/include/loom/average_closures.h"
 }  // namespace loom::shading

@@ -3,6 +3,11 @@
 // (baker/tools/loom_bake.cpp) adds them in the order --help lists them and runs the one given.
 #pragma once
 #include <CLI/CLI.hpp>
+#include <array>
+#include <utility>
+
+#include "loom/atlas.h"
+#include "loom/shading.h"
 #include <functional>
 #include <string>
 #include <vector>
@@ -31,6 +36,11 @@ std::string spec_help();
 /// (main sets it from the command line; bake: its progress and each stage's time).
 int& verbosity();
 
+/// eval bsdf --evaluator average: the repeat-averaged closures at each (wi, wo) pair, at `uv`
+/// (scaled by the point's yarn coverage) or, with `average`, over the repeat (eval_average.cpp).
+int eval_average_closures(const Atlas& atlas, bool average, std::array<double, 2> uv,
+                          const std::vector<std::pair<shading::vec3, shading::vec3>>& pairs);
+
 /// Prints a spec's problems and "nothing was written"; returns 2.
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors);
 
@@ -43,6 +53,7 @@ void add_fibers(CLI::App& app, Commands& out);         // fiber_commands.cpp
 void add_eval_bsdf(CLI::App& eval, Commands& out);     // eval_bsdf.cpp
 void add_eval_mapping(CLI::App& eval, Commands& out);  // eval_bsdf.cpp
 void add_eval_albedo(CLI::App& eval, Commands& out);   // eval_bsdf.cpp
+void add_eval_average(CLI::App& eval, Commands& out);  // eval_average.cpp
 void add_eval_asg(CLI::App& eval, Commands& out);      // eval_plies.cpp
 void add_eval_diffraction(CLI::App& eval, Commands& out);  // eval_wave.cpp
 void add_eval_plysim(CLI::App& eval, Commands& out);   // eval_plies.cpp

@@ -13,6 +13,7 @@
 
 #include "command.h"
 #include "loom/atlas.h"
+#include "loom/average_fit.h"
 #include "loom/cli_values.h"
 #include "loom/evaluator.h"
 #include "loom/preset_error.h"
@@ -56,6 +57,7 @@ int eval_bsdf(const BsdfArgs& a) {
   for (size_t k = 0; k < a.wi.size(); ++k)
     pairs.emplace_back(unit_direction("--wi", a.wi[k]), unit_direction("--wo", a.wo[k]));
   auto atlas = loom::load_atlas(a.atlas);
+  if (a.evaluator == "average") return eval_average_closures(atlas, a.average, uv, pairs);
   auto e = a.evaluator == "closures" ? loom::Evaluator::Closures : loom::Evaluator::Model;
   if (atlas.manifest.value("tier", "") == "raywave") {
     // The ray-wave BSDF (baker/include/loom/raywave_bsdf.h): f_cos is Cycles' eval (f times
@@ -151,8 +153,10 @@ void add_eval_bsdf(CLI::App& eval, Commands& out) {
   c->add_option("--wo", a->wo, "X,Y,Z towards the viewer (tangent frame)")
       ->required()
       ->allow_extra_args(false);
-  c->add_option("--evaluator", a->evaluator, "model | closures")
-      ->check(CLI::IsMember({"model", "closures"}));
+  c->add_option("--evaluator", a->evaluator,
+                "model | closures | average (the repeat-averaged closures, average_closures.h: "
+                "at --uv scaled by the point's yarn coverage, as the shaders far away)")
+      ->check(CLI::IsMember({"model", "closures", "average"}));
   c->add_option("--backend", a->backend,
                 "closures as built by: nodes (node mode, SVM) | osl (the OSL shader)")
       ->check(CLI::IsMember({"nodes", "osl"}));

@@ -68,6 +68,15 @@
 /// Floor of |L.z| in the importance ratio.
 #define LOOM_DIFFRACTION_MIN_COS 0.05
 
+/// Gap coverage at and below which a point has no gap closures (the sampled diffraction and
+/// transparent()): Blender's image textures read a stored coverage of 0 as a positive value
+/// below 1e-4, which would otherwise run the diffraction sampling on every yarn point.
+#define LOOM_DIFFRACTION_MIN_GAP 1e-3
+
+LOOM_FN int diffraction_gap_sampled(float gap) {
+  return gap > LOOM_DIFFRACTION_MIN_GAP;
+}
+
 /// The beam centre's offset from the nearest hole centre along one axis, in units of the half
 /// gap (0 at the centre, 1 at the yarn's edge, clamped there): `coord` is the repeat coordinate
 /// in [0, 1) (u for x, v for y), `yarns` the yarns per repeat stacked along that axis (centred at
