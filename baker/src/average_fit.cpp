@@ -247,13 +247,14 @@ AverageFit fit_average_closures(const Atlas& a, const AverageFitOptions& o,
   std::vector<Target> targets(static_cast<size_t>(n_views));
   std::vector<AverageClosures> fitted(static_cast<size_t>(n_views));
   // Progress after d of the two passes' 2 n_views fits (pass 1 the first 0.8), reported each
-  // tenth only: a line each in the bake's --progress output.
+  // quarter only: a line each in the bake's --progress output (and a restart each in
+  // AtlasCli.KilledBakesLeaveACompleteAtlasOrNone).
   std::atomic<int> done{0};
   auto fraction = [&](int d) {
     return d <= n_views ? 0.8 * d / n_views : 0.8 + 0.2 * (d - n_views) / n_views;
   };
   auto report = [&](int d) {
-    if (progress && int(10 * fraction(d)) != int(10 * fraction(d - 1))) progress(fraction(d));
+    if (progress && int(4 * fraction(d)) != int(4 * fraction(d - 1))) progress(fraction(d));
   };
   tbb::parallel_for(0, 2 * kPhi, [&](int chain) {
     const int side = chain / kPhi, j = chain % kPhi;
