@@ -5,7 +5,7 @@
 #                                    the loom-bake they run
 #   bash scripts/build_san.sh fuzz [TARGET...]
 #                                    build-fuzz/: clang (libFuzzer), the fuzz targets (CTest
-#                                    label fuzz: tests/fuzz/run_fuzzer.sh), default all four
+#                                    label fuzz: tests/fuzz/run_fuzzer.sh), default all five
 # $LOOM_SAN_BUILD_DIR / $LOOM_FUZZ_BUILD_DIR choose other directories.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -18,7 +18,7 @@ case $what in
       -DLOOM_BUILD_BENCH=OFF ;;
   fuzz)
     targets=("$@")
-    ((${#targets[@]})) || targets=(spec manifest cli_values texture)
+    ((${#targets[@]})) || targets=(spec manifest cli_values texture wif)
     CC=clang CXX=clang++ LOOM_BUILD_DIR=${LOOM_FUZZ_BUILD_DIR:-$here/build-fuzz} \
       LOOM_TARGETS="${targets[*]/#/fuzz_}" bash "$here/scripts/build.sh" -DLOOM_SANITIZE=ON \
       -DLOOM_FUZZ=ON "-DLOOM_TEST_SETS=fuzz" -DLOOM_BUILD_BENCH=OFF ;;

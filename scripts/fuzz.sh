@@ -2,8 +2,8 @@
 # Fuzz Loom's parsers with libFuzzer (clang, AddressSanitizer + UndefinedBehaviorSanitizer):
 # the fabric spec parser (tests/fuzz/fuzz_spec.cpp), an atlas's manifest with everything read
 # from it (tests/fuzz/fuzz_manifest.cpp), loom-bake's command-line values
-# (tests/fuzz/fuzz_cli_values.cpp) and an atlas's texture files read through OpenImageIO
-# (tests/fuzz/fuzz_texture.cpp).
+# (tests/fuzz/fuzz_cli_values.cpp), an atlas's texture files read through OpenImageIO
+# (tests/fuzz/fuzz_texture.cpp) and WIF weaving drafts (tests/fuzz/fuzz_wif.cpp).
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET [TARGET...]]
 #     SECONDS_PER_TARGET: default 600 (scripts/test.sh runs each for 30 s as the CTest tests
 #       fuzz.TARGET, and scripts/test.sh --full for 600 s)
@@ -18,7 +18,7 @@ set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-600}
 shift || true
-all_targets=(spec manifest cli_values texture)  # as in CMakeLists.txt's LOOM_FUZZ block
+all_targets=(spec manifest cli_values texture wif)  # as in CMakeLists.txt's LOOM_FUZZ block
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${all_targets[@]}")
 for t in "${targets[@]}"; do

@@ -104,6 +104,8 @@ nlohmann::json ColourConverter::describe() const {
 void resolve_yarn_colours(FabricSpec& spec, const ColourConverter& cc) {
   for (YarnSpec* y : {&spec.warp, &spec.weft})
     y->color_linear = y->color_space == "srgb" ? cc.srgb_to_linear(y->color_input) : y->color_input;
+  for (YarnType& t : spec.yarn_types)
+    t.color_linear = t.color_space == "srgb" ? cc.srgb_to_linear(t.color_input) : t.color_input;
 }
 
 }  // namespace loom

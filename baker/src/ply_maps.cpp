@@ -275,6 +275,7 @@ GeometrySample SurfaceGeometry::sample(double x, double y, bool clamp_edge) cons
   }
   GeometrySample g;
   g.kind = kind;
+  g.yarn = kind == 2 ? ci : ri;
   if (!s.covers) return g;
   g.height = s.height;
   g.t[0] = s.t.x, g.t[1] = s.t.y, g.t[2] = s.t.z;
@@ -356,9 +357,11 @@ SurfaceMaps bake_surface_maps(const FabricSpec& spec, const ProgressFn& progress
       double spec_w = ys.specular;
       float* ar = alb_r.px(ix, iy);
       float* at = alb_t.px(ix, iy);
+      // This thread's colour (its yarn type's under a sequence, else its system's).
+      const std::array<double, 3> colour = thread_colour_linear(spec, kind == 2 ? 2 : 1, s.yarn);
       for (int ch = 0; ch < 3; ++ch) {
-        ar[ch] = float((1 - spec_w) * (1 - tau) * ys.color_linear[ch]);
-        at[ch] = float((1 - spec_w) * tau * ys.color_linear[ch]);
+        ar[ch] = float((1 - spec_w) * (1 - tau) * colour[size_t(ch)]);
+        at[ch] = float((1 - spec_w) * tau * colour[size_t(ch)]);
       }
       ar[3] = float(spec_w * (1 - tau));
       at[3] = float(spec_w * tau);

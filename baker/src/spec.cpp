@@ -244,6 +244,12 @@ void read_yarn(const json& j, const std::string& path, YarnSpec& y,
 
 void read_weave(const json& j, const std::string& path, WeaveSpec& w,
                 std::vector<std::string>& errors) {
+  if (j.is_object() && j.contains("wif")) {  // load_spec reads it; a spec given as text cannot
+    errors.push_back(fmt::format("{}.wif: a draft is read from a spec file (loom-bake check or "
+                                 "bake SPEC.json, the path relative to its folder)",
+                                 path));
+    return;
+  }
   Reader r(j, path, errors);
   w.pattern = r.choice("pattern", w.pattern, {"plain", "twill", "satin", "basket", "custom"});
   if (w.pattern == "twill") {
@@ -265,9 +271,9 @@ void read_weave(const json& j, const std::string& path, WeaveSpec& w,
     w.group = r.integer("group", w.group, 2, 4);
   } else if (w.pattern == "custom") {
     const json* m = r.get("matrix");
-    bool good = m && m->is_array() && !m->empty() && m->size() <= 64;
+    bool good = m && m->is_array() && !m->empty() && m->size() <= kMaxRepeatYarns;
     size_t cols = good ? ((*m)[0].is_array() ? (*m)[0].size() : 0) : 0;
-    good = good && cols >= 1 && cols <= 64;
+    good = good && cols >= 1 && cols <= kMaxRepeatYarns;
     if (good) {
       w.matrix.clear();
       for (auto& row : *m) {
@@ -284,9 +290,9 @@ void read_weave(const json& j, const std::string& path, WeaveSpec& w,
       }
     }
     if (!good) {
-      errors.push_back(fmt::format("{}.matrix: expected a rectangular array of 1 to 64 rows of 1 "
-                                   "to 64 entries, each 0 (weft on top) or 1 (warp on top)",
-                                   path));
+      errors.push_back(fmt::format("{}.matrix: expected a rectangular array of 1 to {} rows of 1 "
+                                   "to {} entries, each 0 (weft on top) or 1 (warp on top)",
+                                   path, kMaxRepeatYarns, kMaxRepeatYarns));
       w.matrix = {{1, 0}, {0, 1}};
     } else {
       // Each warp yarn must go under at least once and over at least once, or it is not woven.
@@ -308,6 +314,74 @@ void read_weave(const json& j, const std::string& path, WeaveSpec& w,
     }
   }
   r.reject_unknown();
+}
+
+/// "yarn_types": {name: {"color": ...}} (sorted by name).
+void read_yarn_types(const json& j, std::vector<YarnType>& types,
+                     std::vector<std::string>& errors) {
+  if (j.is_null()) return;
+  if (!j.is_object()) {
+    errors.push_back(fmt::format("$.yarn_types: expected an object of yarn types by name, e.g. "
+                                 "{{\"red\": {{\"color\": {{\"srgb\": [0.8, 0.1, 0.1]}}}}}}"));
+    return;
+  }
+  for (auto& [name, t] : j.items()) {
+    const std::string path = "$.yarn_types." + name;
+    if (name.empty() || name.size() > 64) {
+      errors.push_back(fmt::format("{}: a yarn type's name has 1 to 64 characters", path));
+      continue;
+    }
+    if (!t.is_object() || !t.contains("color")) {
+      errors.push_back(fmt::format("{}: expected {{\"color\": {{\"srgb\": [r, g, b]}}}}", path));
+      continue;
+    }
+    for (auto& [k, v] : t.items())
+      if (k != "color")
+        errors.push_back(fmt::format("{}.{}: yarn types that differ in more than colour are not "
+                                     "yet supported (issue 33); allowed: \"color\"",
+                                     path, k));
+    YarnSpec y;
+    read_yarn(json{{"color", t["color"]}}, path, y, errors);
+    types.push_back({name, y.color_linear, y.color_input, y.color_space});
+  }
+  std::sort(types.begin(), types.end(),
+            [](const YarnType& a, const YarnType& b) { return a.name < b.name; });
+}
+
+/// A system's "sequence": [[type, count], ...], runs of known types.
+void read_sequence(const json& j, const std::string& path, const std::vector<YarnType>& types,
+                   std::vector<ThreadRun>& runs, std::vector<std::string>& errors) {
+  const std::string want = fmt::format(
+      "expected runs [[type, count], ...] of the yarn_types' names, each count in [1, {0}], "
+      "{0} threads in all at most",
+      kMaxRepeatYarns);
+  if (!j.is_array() || j.empty()) {
+    errors.push_back(fmt::format("{}: {}", path, want));
+    return;
+  }
+  long long total = 0;
+  for (size_t k = 0; k < j.size(); ++k) {
+    const json& e = j[k];
+    if (!e.is_array() || e.size() != 2 || !e[0].is_string() || !e[1].is_number_integer() ||
+        e[1].get<int64_t>() < 1 || e[1].get<int64_t>() > kMaxRepeatYarns) {
+      errors.push_back(fmt::format("{}[{}]: {}", path, k, want));
+      continue;
+    }
+    const std::string type = e[0].get<std::string>();
+    if (std::none_of(types.begin(), types.end(), [&](const YarnType& t) { return t.name == type; })) {
+      std::string names;
+      for (const auto& t : types) names += (names.empty() ? "" : ", ") + t.name;
+      errors.push_back(fmt::format("{}[{}]: \"{}\" is not a yarn type ($.yarn_types: {})", path,
+                                   k, type, names.empty() ? "none" : names));
+      continue;
+    }
+    total += e[1].get<int64_t>();
+    if (!runs.empty() && runs.back().type == type)
+      runs.back().count += e[1].get<int>();  // adjacent runs of one type are one run
+    else
+      runs.push_back({type, e[1].get<int>()});
+  }
+  if (total > kMaxRepeatYarns) errors.push_back(fmt::format("{}: {} threads; {}", path, total, want));
 }
 
 }  // namespace
@@ -335,11 +409,20 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
     const json& o = sub(r, key, errors);
     for (auto& [k, v] : o.items()) (*target)[k] = v;
   }
+  read_yarn_types(r.get("yarn_types") ? *r.get("yarn_types") : json(), s.yarn_types, errors);
   // Report a field that came from "yarn" (and was not overridden) once, under $.yarn.
   for (auto [key, target, y] : {std::tuple{"warp", &warp, &s.warp},
                                 std::tuple{"weft", &weft, &s.weft}}) {
     std::vector<std::string> yerr;
     const std::string path = std::string("$.") + key;
+    if (target->is_object() && target->contains("sequence")) {
+      const json* own = r.get(key);
+      const bool mine = own && own->is_object() && own->contains("sequence");
+      read_sequence((*target)["sequence"], (mine ? path : std::string("$.yarn")) + ".sequence",
+                    s.yarn_types, std::string(key) == "warp" ? s.warp_sequence : s.weft_sequence,
+                    yerr);
+      target->erase("sequence");
+    }
     read_yarn(*target, path, *y, yerr);
     const json* own = r.get(key);
     for (auto& e : yerr) {
@@ -424,6 +507,13 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
         "\"raywave\". Fibers go over either where the camera resolves them: the Blender "
         "add-on's Fibers from Camera, or loom-bake fibers --region",
         to_string(s.tier)));
+  // The repeat holds whole yarn sequences: the weave's repeat tiled to their lengths.
+  s.weave.tile_rows = std::max(sequence_length(s.warp_sequence), 1);
+  s.weave.tile_cols = std::max(sequence_length(s.weft_sequence), 1);
+  if (has_thread_sequences(s) && s.tier == Tier::Raywave)
+    errors.push_back("$.model.tier: \"raywave\" does not yet take per-thread yarn sequences "
+                     "(issue 33: its tables are per system); allowed with a sequence: "
+                     "\"surface\"");
   // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
   int rows = 2, cols = 2;
   const auto& w = s.weave;
@@ -433,6 +523,16 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
   if (w.pattern == "custom" && !w.matrix.empty()) {
     rows = static_cast<int>(w.matrix.size());
     cols = static_cast<int>(w.matrix[0].size());
+  }
+  for (auto [n, tile, what] : {std::tuple{&rows, w.tile_rows, "warp"},
+                               std::tuple{&cols, w.tile_cols, "weft"}}) {
+    const long long l = std::lcm(static_cast<long long>(*n), static_cast<long long>(tile));
+    if (l > kMaxRepeatYarns)
+      errors.push_back(fmt::format("$.{}.sequence: the repeat grows to {} {} yarns (the least "
+                                   "common multiple of the weave's {} and the sequence's {}), "
+                                   "more than {}",
+                                   what, l, what, *n, tile, kMaxRepeatYarns));
+    *n = int(std::min<long long>(l, kMaxRepeatYarns));
   }
   long long side = static_cast<long long>(std::max(rows, cols)) * texels_per_cell(s.quality);
   if (side > kMaxMapSide)
@@ -466,94 +566,6 @@ SpecResult parse_spec_text(const std::string& text, const std::string& quality_o
     return r;
   }
   return parse_spec(doc, quality_override);
-}
-
-SpecResult load_spec(const std::string& file_or_preset, const std::string& quality_override) {
-  std::string name = file_or_preset;
-  if (name.rfind("preset:", 0) == 0) name = name.substr(7);
-  for (auto& p : preset_names())
-    if (p == name) return parse_spec(preset(name), quality_override);
-  std::ifstream in(file_or_preset, std::ios::binary);
-  if (!in) {
-    SpecResult r;
-    std::string list;
-    for (auto& p : preset_names()) list += (list.empty() ? "" : ", ") + p;
-    r.errors.push_back(fmt::format("{}: cannot read this file, and it is not a preset name ({})",
-                                   file_or_preset, list));
-    return r;
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_spec_text(ss.str(), quality_override);
-}
-
-json canonical_spec(const FabricSpec& s) {
-  auto yarn = [](const YarnSpec& y) {
-    json c;
-    c[y.color_space] = y.color_input;
-    return json{{"plies", y.plies},
-                {"fibers_per_ply", y.fibers_per_ply},
-                {"yarn_diameter_um", y.yarn_diameter_um},
-                {"ply_diameter_um", y.ply_diameter_um},
-                {"fiber_diameter_um", y.fiber_diameter_um},
-                {"fiber_twist_pitch_um", y.fiber_twist_pitch_um},
-                {"ply_twist_deg", y.ply_twist_deg},
-                {"twist", y.twist},
-                {"ior", y.ior},
-                {"color", c},
-                {"roughness", y.roughness},
-                {"specular", y.specular},
-                {"transmission", y.transmission},
-                {"migration_min", y.migration_min},
-                {"migration_max", y.migration_max},
-                {"migration_period", y.migration_period},
-                {"density_epsilon", y.density_epsilon},
-                {"density_beta", y.density_beta},
-                {"loop_flyaways_per_mm", y.loop_flyaways_per_mm},
-                {"hair_flyaways_per_mm", y.hair_flyaways_per_mm}};
-  };
-  json weave = {{"pattern", s.weave.pattern}};
-  if (s.weave.pattern == "twill") {
-    weave["up"] = s.weave.up;
-    weave["down"] = s.weave.down;
-    weave["direction"] = s.weave.direction;
-  } else if (s.weave.pattern == "satin") {
-    weave["harness"] = s.weave.harness;
-    weave["shift"] = s.weave.shift;
-  } else if (s.weave.pattern == "basket") {
-    weave["group"] = s.weave.group;
-  } else if (s.weave.pattern == "custom") {
-    weave["matrix"] = s.weave.matrix;
-  }
-  return json{{"schema", kSpecSchema},
-              {"name", s.name},
-              {"weave", weave},
-              {"warp", yarn(s.warp)},
-              {"weft", yarn(s.weft)},
-              {"density", {{"warp_per_cm", s.warp_per_cm}, {"weft_per_cm", s.weft_per_cm}}},
-              {"model",
-               {{"tier", to_string(s.tier)},
-                {"quality", to_string(s.quality)},
-                {"colour_reading", to_string(s.colour_reading)},
-                {"optical_thickness", s.optical_thickness},
-                {"diffuse_blend", s.diffuse_blend},
-                {"double_layer_blend", s.double_layer_blend}}},
-              {"components",
-               {{"transmission", s.components.transmission},
-                {"gaps", s.components.gaps},
-                {"shadowing", s.components.shadowing},
-                {"multi_ply", s.components.multi_ply},
-                {"double_layer", s.components.double_layer},
-                {"perlin", s.perlin.enabled}}},
-              {"perlin",
-               {{"seed", s.perlin.seed},
-                {"amplitude", s.perlin.amplitude},
-                {"cells_per_repeat", s.perlin.cells_per_repeat}}},
-              {"wave",
-               {{"diffraction", s.wave.diffraction},
-                {"beam_waist_um", s.wave.beam_waist_um},
-                {"noise", s.wave.noise},
-                {"speckle_width_um", s.wave.speckle_width_um}}}};
 }
 
 }  // namespace loom

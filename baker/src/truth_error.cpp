@@ -100,6 +100,8 @@ TruthError truth_error(const Atlas& a, const FabricSpec& spec, const TruthErrorS
           "same fabric", size.at(0).get<double>(), size.at(1).get<double>(), one[2] - one[0],
           one[3] - one[1]));
   }
+  if (auto e = thread_sequences_not_yet(spec, "eval error --truth"); !e.empty())
+    throw std::invalid_argument(e);
   // The fibers' colours as the atlas resolved them (its OCIO config, if any).
   FabricSpec fabric = spec;
   const auto& colours = a.manifest.at("yarn_colours_linear");

@@ -1,5 +1,8 @@
 #include "loom/weave.h"
 
+#include <algorithm>
+#include <numeric>
+
 namespace loom {
 
 Weave make_weave(const WeaveSpec& w) {
@@ -23,7 +26,17 @@ Weave make_weave(const WeaveSpec& w) {
   } else {
     out.m = {{1, 0}, {0, 1}};
   }
-  return out;
+  // Tiled to hold whole yarn sequences (WeaveSpec::tile_rows, tile_cols).
+  const int R = out.rows(), C = out.cols();
+  if (R == 0 || C == 0) return out;
+  const int rows = std::min(std::lcm(R, std::max(w.tile_rows, 1)), kMaxRepeatYarns);
+  const int cols = std::min(std::lcm(C, std::max(w.tile_cols, 1)), kMaxRepeatYarns);
+  if (rows == R && cols == C) return out;
+  Weave tiled;
+  tiled.m.assign(size_t(rows), std::vector<int>(size_t(cols), 0));
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) tiled.m[size_t(r)][size_t(c)] = out.at(r, c);
+  return tiled;
 }
 
 }  // namespace loom

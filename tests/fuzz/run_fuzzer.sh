@@ -2,7 +2,7 @@
 # One bounded libFuzzer run of one of Loom's fuzz targets (built by scripts/fuzz.sh, or by the
 # sanitizer build of scripts/test.sh, which registers this as the CTest test fuzz.TARGET).
 #   run_fuzzer.sh FUZZER TARGET OUT_DIR [SECONDS]
-#     FUZZER: the fuzz_TARGET executable; TARGET: spec, manifest, cli_values or texture
+#     FUZZER: the fuzz_TARGET executable; TARGET: spec, manifest, cli_values, texture or wif
 #     OUT_DIR: the corpus grows in OUT_DIR/TARGET (seeded from tests/fuzz/corpus/TARGET, and for
 #       spec the built-in presets); a crash, a sanitizer report or a broken property leaves its
 #       input in OUT_DIR/TARGET-crash-* and fails the run

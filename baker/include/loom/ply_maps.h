@@ -58,6 +58,7 @@ struct GeometrySample {
   double height = 0;
   float t[3] = {1, 0, 0}, n[3] = {0, 0, 1};
   float h = 0, along = 0, ply_id = 0;
+  int yarn = 0;  ///< which warp yarn (row) or weft yarn (column) of the repeat
 };
 
 class SurfaceGeometry {

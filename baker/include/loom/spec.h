@@ -57,6 +57,24 @@ struct WeaveSpec {
   int harness = 5, shift = 2;     ///< satin, harness [5, 16], shift [2, harness-2], coprime
   int group = 2;                  ///< basket, [2, 4]
   std::vector<std::vector<int>> matrix;  ///< custom: rows = warp yarns, cols = weft yarns
+  /// The repeat is tiled to a multiple of these (the warp's and weft's yarn sequences: one
+  /// repeat holds whole sequences); not part of the canonical weave.
+  int tile_rows = 1, tile_cols = 1;
+};
+
+/// A yarn type of the per-thread sequences: its own colour. (Types that differ in more than
+/// colour are not yet supported: issue 33.)
+struct YarnType {
+  std::string name;
+  std::array<double, 3> color_linear{0.5, 0.5, 0.5};  ///< scene-linear RGB after conversion
+  std::array<double, 3> color_input{0.5, 0.5, 0.5};   ///< as written in the spec
+  std::string color_space = "srgb";
+};
+
+/// `count` threads of yarn type `type` side by side.
+struct ThreadRun {
+  std::string type;
+  int count = 1;
 };
 
 struct PerlinSpec {
@@ -116,7 +134,24 @@ struct FabricSpec {
   ComponentSpec components;
   PerlinSpec perlin;
   WaveSpec wave;
+  /// Per-thread yarn types ("yarn_types", and "sequence" in "warp" / "weft": runs repeating
+  /// across the cloth; stripes, checks, tartans): empty sequence, every thread the system's
+  /// own yarn. Surface tier only for now.
+  std::vector<YarnType> yarn_types;  ///< sorted by name
+  std::vector<ThreadRun> warp_sequence, weft_sequence;
 };
+
+/// Threads in one repeat of a sequence (0 for none).
+int sequence_length(const std::vector<ThreadRun>& runs);
+/// The scene-linear colour of warp (system 1) or weft (system 2) thread `index` (any integer;
+/// the sequence repeats), the system's own colour without a sequence.
+std::array<double, 3> thread_colour_linear(const FabricSpec& s, int system, int index);
+/// Whether any thread's colour differs from its system's own (a reader that knows one colour per
+/// system says "not yet" then).
+bool has_thread_sequences(const FabricSpec& s);
+/// The "not yet" message of a reader of one colour per system (`what`: e.g. "eval truth")
+/// given a spec with sequences, naming the field; empty when it has none.
+std::string thread_sequences_not_yet(const FabricSpec& s, const std::string& what);
 
 struct SpecResult {
   FabricSpec spec;
@@ -130,6 +165,11 @@ SpecResult parse_spec(const nlohmann::json& doc, const std::string& quality_over
 SpecResult parse_spec_text(const std::string& text, const std::string& quality_override = "");
 /// Read a file or a built-in preset name ("preset:plain", or a bare preset name).
 SpecResult load_spec(const std::string& file_or_preset, const std::string& quality_override = "");
+/// A spec from a WIF draft (wif.h) with `user` (a spec document, {} for none) laid over it;
+/// `draft_name` names the draft in messages. load_spec takes a .wif file (or any file whose
+/// first section is [WIF]) directly, and a JSON spec naming one as "weave": {"wif": path}.
+SpecResult spec_with_draft(const nlohmann::json& user, const std::string& wif_text,
+                           const std::string& draft_name, const std::string& quality_override = "");
 
 /// The canonical form: every field present with its effective value, keys sorted. Its sha256
 /// identifies the bake (same canonical spec => same atlas).
@@ -145,5 +185,8 @@ int texels_per_cell(Quality q);
 /// Upper bound on the atlas's map resolution (per side) that we accept; larger is an error
 /// (the maps, their mip chain and the work buffers must fit comfortably in memory).
 inline constexpr int kMaxMapSide = 4096;
+/// A custom weave repeat's yarns per system at most (a draft's repeat, wif.h); the maps' side
+/// (kMaxMapSide) limits it further by quality.
+inline constexpr int kMaxRepeatYarns = 1024;
 
 }  // namespace loom

@@ -25,6 +25,7 @@ struct Weave {
 ///  satin   warp-faced, harness n, shift s: warp r is under weft c only where c = r s mod n
 ///  basket  plain weave of groups of g yarns side by side
 ///  custom  the spec's matrix
+/// tiled to hold whole yarn sequences (w.tile_rows, w.tile_cols: the least common multiples).
 Weave make_weave(const WeaveSpec& w);
 
 }  // namespace loom

@@ -30,7 +30,7 @@ int& verbosity() {
 std::string spec_help() {
   std::string names;
   for (const std::string& n : loom::preset_names()) names += (names.empty() ? "" : ", ") + n;
-  return "spec file or preset name (" + names + ")";
+  return "spec file (JSON, or a WIF weaving draft: .wif) or preset name (" + names + ")";
 }
 
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors) {

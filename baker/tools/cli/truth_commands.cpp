@@ -60,6 +60,9 @@ bool write_truth_image(const loom::TruthResult& r, const loom::Vec3d& wi, const 
 
 int eval_truth(const EvalTruthArgs& a) {
   auto res = loom::load_spec(a.spec);
+  if (res.ok())
+    if (auto e = loom::thread_sequences_not_yet(res.spec, "eval truth"); !e.empty())
+      res.errors.push_back(e);
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   loom::resolve_yarn_colours(res.spec, loom::ColourConverter(""));  // as bake does by default
   const auto w = loom::parse_cli_direction("--wi", a.wi);
@@ -160,6 +163,9 @@ struct SwatchArgs {
 /// The swatch an atlas renders (atlas_swatch.h), model and closures, against its picked colour.
 int eval_atlas_swatch(const SwatchArgs& a) {
   const auto atlas = loom::load_atlas(a.atlas);
+  if (const auto sp = loom::parse_spec(atlas.manifest.value("spec", json::object())); sp.ok())
+    if (auto e = loom::thread_sequences_not_yet(sp.spec, "eval swatch"); !e.empty())
+      return report_spec_errors(a.atlas, {e});
   const loom::SpectralUpsampler lab_of(loom::ColourConverter(""));  // its CIELAB
   auto lab = [&](const std::array<double, 3>& c) { return lab_of.lab(c); };
   const auto& cols = atlas.manifest.at("yarn_colours_linear");
@@ -195,6 +201,9 @@ int eval_swatch(const SwatchArgs& a) {
   }
   if (!a.atlas.empty()) return eval_atlas_swatch(a);
   auto res = loom::load_spec(a.spec);
+  if (res.ok())
+    if (auto e = loom::thread_sequences_not_yet(res.spec, "eval swatch"); !e.empty())
+      res.errors.push_back(e);
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   const loom::ColourConverter cc("");
   loom::resolve_yarn_colours(res.spec, cc);  // as bake does by default

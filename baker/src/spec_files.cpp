@@ -1,0 +1,105 @@
+// Specs from files: a JSON spec (a draft it names read relative to its folder), a WIF weaving
+// draft baked as it is, or a built-in preset (spec.h: load_spec, spec_with_draft).
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <sstream>
+
+#include "loom/spec.h"
+#include "loom/wif.h"
+
+namespace loom {
+
+using nlohmann::json;
+
+SpecResult load_spec(const std::string& file_or_preset, const std::string& quality_override) {
+  std::string name = file_or_preset;
+  if (name.rfind("preset:", 0) == 0) name = name.substr(7);
+  for (auto& p : preset_names())
+    if (p == name) return parse_spec(preset(name), quality_override);
+  std::ifstream in(file_or_preset, std::ios::binary);
+  if (!in) {
+    SpecResult r;
+    std::string list;
+    for (auto& p : preset_names()) list += (list.empty() ? "" : ", ") + p;
+    r.errors.push_back(fmt::format("{}: cannot read this file, and it is not a preset name ({})",
+                                   file_or_preset, list));
+    return r;
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  const std::filesystem::path path(file_or_preset);
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".wif" || looks_like_wif(text))
+    return spec_with_draft(json::object(), text, file_or_preset, quality_override);
+  json doc;
+  try {
+    doc = json::parse(text, nullptr, true, /*ignore_comments=*/false);
+  } catch (const json::exception& e) {
+    return parse_spec_text(text, quality_override);  // (its syntax error)
+  }
+  // A spec naming a draft: the path relative to the spec's folder.
+  if (doc.is_object() && doc.contains("weave") && doc["weave"].is_object() &&
+      doc["weave"].contains("wif")) {
+    const json& w = doc["weave"]["wif"];
+    if (!w.is_string() || w.get<std::string>().empty()) {
+      SpecResult r;
+      r.errors.push_back(fmt::format("$.weave.wif: expected the path of a WIF draft (relative to "
+                                     "the spec's folder), not {}",
+                                     w.dump()));
+      return r;
+    }
+    std::filesystem::path draft(w.get<std::string>());
+    if (draft.is_relative()) draft = path.parent_path() / draft;
+    std::ifstream din(draft, std::ios::binary);
+    if (!din) {
+      SpecResult r;
+      r.errors.push_back(fmt::format("$.weave.wif: cannot read {}", draft.string()));
+      return r;
+    }
+    std::stringstream ds;
+    ds << din.rdbuf();
+    return spec_with_draft(doc, ds.str(), draft.string(), quality_override);
+  }
+  return parse_spec(doc, quality_override);
+}
+
+SpecResult spec_with_draft(const json& user, const std::string& wif_text,
+                           const std::string& draft_name, const std::string& quality_override) {
+  SpecResult res;
+  WifResult w = parse_wif(wif_text, draft_name);
+  if (!w.ok()) {
+    res.errors = std::move(w.errors);
+    return res;
+  }
+  std::string stem = std::filesystem::path(draft_name).stem().string();
+  if (stem.empty() || stem.size() > 128) stem = "draft";
+  const WifSpec ws = wif_spec(w.draft, stem, res.errors);
+  const YarnSpec defaults;
+  const json doc = merge_draft_spec(user, ws, defaults.ply_diameter_um / defaults.yarn_diameter_um,
+                                    res.errors);
+  for (auto& e : res.errors)  // name the file, not the stem
+    if (e.rfind(stem + " ", 0) == 0) e = draft_name + e.substr(stem.size());
+  if (!res.errors.empty()) return res;
+  res = parse_spec(doc, quality_override);
+  // Values the draft gave, named where they came from.
+  const WifDraft& d = w.draft;
+  const std::tuple<const char*, const char*, int> origin[] = {
+      {"$.warp.yarn_diameter_um", "[WARP] Thickness", d.warp_thickness_line},
+      {"$.warp.ply_diameter_um", "[WARP] Thickness", d.warp_thickness_line},
+      {"$.weft.yarn_diameter_um", "[WEFT] Thickness", d.weft_thickness_line},
+      {"$.weft.ply_diameter_um", "[WEFT] Thickness", d.weft_thickness_line},
+      {"$.density.warp_per_cm", "[WARP] Spacing", d.warp_spacing_line},
+      {"$.density.weft_per_cm", "[WEFT] Spacing", d.weft_spacing_line}};
+  for (auto& e : res.errors)
+    for (const auto& [field, key, line] : origin)
+      if (line > 0 && e.rfind(field, 0) == 0) {
+        e += fmt::format(" (from {} line {}: {})", draft_name, line, key);
+        break;
+      }
+  return res;
+}
+
+}  // namespace loom
