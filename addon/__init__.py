@@ -26,6 +26,7 @@ def register():
     osl_paths.register()
     atlas_check.register()
     fibers.register()
+    bpy.types.TOPBAR_MT_file_import.append(operators.menu_import)
     for name, module in _ALIASES.items():
         if __name__ != "loom":
             sys.modules.setdefault(name, module)
@@ -35,6 +36,7 @@ def unregister():
     for name, module in _ALIASES.items():
         if __name__ != "loom" and sys.modules.get(name) is module:
             del sys.modules[name]
+    bpy.types.TOPBAR_MT_file_import.remove(operators.menu_import)
     fibers.unregister()
     atlas_check.unregister()
     osl_paths.unregister()

@@ -1,5 +1,6 @@
 """Operators: bake & assign (modal, non-blocking), cancel, assign an existing atlas, new material,
-check what the scene needs (scene_needs.py).
+check what the scene needs (scene_needs.py), import a WIF weaving draft (File > Import, or
+dropped on a 3D viewport).
 
 Bake & Assign runs loom-bake as a subprocess (bakery.BakeJob) and polls it from a window timer,
 so Blender stays responsive; progress goes to the window manager's progress cursor, the status
@@ -13,6 +14,7 @@ import os
 import bpy
 from bpy.props import StringProperty
 from bpy.types import Operator
+from bpy_extras.io_utils import ImportHelper
 
 from . import api, bakery, colour_config, fibers, manifest as _manifest, material, preferences
 from . import scene_needs
@@ -375,5 +377,90 @@ class LOOM_OT_fibers_remove(Operator):
         return {"FINISHED"}
 
 
+def _cloth_plane(context, name: str, size: float):
+    """A square of side ``size`` at the 3D cursor in the active collection, UVs [0, 1]^2
+    (so "Physical" scale sets the real thread density from its size), selected and active."""
+    half = 0.5 * size
+    mesh = bpy.data.meshes.new(name)
+    verts = [(-half, -half, 0.0), (half, -half, 0.0), (half, half, 0.0), (-half, half, 0.0)]
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    for loop in mesh.loops:
+        x, y, _ = verts[loop.vertex_index]
+        uv.data[loop.index].uv = (x / size + 0.5, y / size + 0.5)
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = context.scene.cursor.location
+    context.collection.objects.link(obj)
+    for other in context.view_layer.objects.selected:
+        other.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    return obj
+
+
+class LOOM_OT_import_wif(Operator, ImportHelper):
+    """Import a WIF weaving draft: a cloth plane at the 3D cursor with a Loom material woven from
+    the draft (its interlacing, thread densities and colours), baked and assigned"""
+
+    bl_idname = "loom.import_wif"
+    bl_label = "Import Weaving Draft"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filename_ext = ".wif"
+    filter_glob: StringProperty(default="*.wif;*.WIF", options={"HIDDEN"})
+    size: bpy.props.FloatProperty(name="Size", description="Side of the cloth plane",
+                                  default=0.2, min=1e-3, soft_max=10.0, unit="LENGTH")
+
+    def invoke(self, context, event):
+        if self.filepath:  # dropped on a 3D viewport (LOOM_FH_wif)
+            return self.execute(context) if context.window is None else self._start(context)
+        return ImportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        return self._start(context)
+
+    def _start(self, context):
+        path = bpy.path.abspath(self.filepath)
+        exe = preferences.find_loom_bake()
+        if exe is None:
+            self.report({"ERROR"}, "Loom: loom-bake not found (add-on preferences, $LOOM_BAKE "
+                                   "or PATH)")
+            return {"CANCELLED"}
+        # The draft is checked before anything is made: a bad one changes nothing.
+        try:
+            bakery.spec_geometry(exe, path)
+        except bakery.LoomBakeError as exc:
+            self.report({"ERROR"}, f"Loom: {exc}")
+            return {"CANCELLED"}
+        name = os.path.splitext(os.path.basename(path))[0] or "Weaving Draft"
+        obj = _cloth_plane(context, name, self.size)
+        mat = material.ensure_material(obj, name=name)
+        mat.loom.source = "FILE"
+        mat.loom.spec_path = path
+        mat.loom.model = "SPEC"  # the draft's tier (per-thread colours: surface only for now)
+        how = "INVOKE_DEFAULT" if context.window is not None else "EXEC_DEFAULT"
+        with context.temp_override(object=obj, active_object=obj, material=mat):
+            return bpy.ops.loom.bake_assign(how)
+
+
+class LOOM_FH_wif(bpy.types.FileHandler):
+    """WIF drafts dropped on a 3D viewport are imported (LOOM_OT_import_wif)."""
+
+    bl_idname = "LOOM_FH_wif"
+    bl_label = "Loom weaving draft"
+    bl_import_operator = "loom.import_wif"
+    bl_file_extensions = ".wif"
+
+    @classmethod
+    def poll_drop(cls, context):
+        return context.area is not None and context.area.type == "VIEW_3D"
+
+
+def menu_import(self, context):
+    self.layout.operator(LOOM_OT_import_wif.bl_idname, text="Weaving Draft (.wif) as Loom Cloth")
+
+
 classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new,
-           LOOM_OT_scene_needs, LOOM_OT_fibers_update, LOOM_OT_fibers_remove)
+           LOOM_OT_scene_needs, LOOM_OT_fibers_update, LOOM_OT_fibers_remove, LOOM_OT_import_wif,
+           LOOM_FH_wif)

@@ -54,13 +54,14 @@ class LoomMaterialSettings(PropertyGroup):
     source: EnumProperty(
         name="Source",
         items=[("PRESET", "Preset", "A built-in loom-bake preset"),
-               ("FILE", "Spec File", "A fabric spec (JSON, schema loom.fabric/1)")],
+               ("FILE", "Spec File", "A fabric spec (JSON, schema loom.fabric/1) or a WIF "
+                "weaving draft (.wif)")],
         default="PRESET",
     )
     preset: EnumProperty(name="Preset", items=_preset_items,
                          description="Built-in fabric (listed by loom-bake presets)")
     spec_path: StringProperty(name="Spec", subtype="FILE_PATH",
-                              description="Fabric spec JSON file")
+                              description="Fabric spec JSON file or WIF weaving draft")
     model: EnumProperty(
         name="Model",
         items=[("SCENE", "By Scene",
