@@ -1,17 +1,19 @@
 // loom-bake's command-line conventions (issue 34): --version with the commit, --threads before
 // or after the subcommand (results independent of it), the exit codes in --help, a destination
 // that is not an atlas refused as bad input with nothing written, a bake's errors as JSON with
-// --progress=json, -q and -v.
+// --progress=json, -q and -v, batch bakes.
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 #include <algorithm>
 #include <cctype>
 #include <string>
 #include <vector>
 
+#include "loom/atlas.h"
 #include "loom/spec.h"
 #include "test_util.h"
 
@@ -169,6 +171,49 @@ TEST(CliConventions, QuietAndVerbose) {
   EXPECT_TRUE(quiet.empty()) << quiet;
   std::string both;
   EXPECT_EQ(loom::test::run(exe + " -q -v presets 2>&1", &both), 2) << both;
+}
+
+TEST(CliConventions, BakesSeveralSpecsOrAFolderEachIntoItsOwnAtlas) {
+  // Several specs (a preset and a draft) into -o/<name>; a folder of specs (its *.json and
+  // *.wif) likewise; one bad spec among them: exit 2, every problem named, nothing written.
+  namespace fs = std::filesystem;
+  const std::string exe = loom::test::bake_exe();
+  const fs::path src = loom::test::source_dir(), dir = loom::test::scratch("batch");
+  const fs::path specs = dir / "specs", out = dir / "out";
+  fs::create_directories(specs);
+  fs::copy_file(src / "presets" / "drafts" / "point_twill.wif", specs / "point_twill.wif");
+  std::ofstream(specs / "red.json") << R"({"yarn": {"color": {"srgb": [0.8, 0.1, 0.1]}}})";
+  std::ofstream(specs / "notes.txt") << "not a spec";
+  std::string res;
+  ASSERT_EQ(loom::test::run(exe + " bake " + specs.string() + " plain --quality draft "
+                                "--progress=json -o " + out.string() + " 2>&1",
+                            &res),
+            0)
+      << res;
+  std::vector<std::string> done;
+  std::istringstream lines(res);
+  for (std::string line; std::getline(lines, line);) {
+    const auto j = nlohmann::json::parse(line);
+    ASSERT_TRUE(j.contains("spec")) << line;  // every line says whose it is
+    if (j.contains("atlas"))
+      done.push_back(fs::path(j["atlas"].get<std::string>()).filename().string());
+  }
+  EXPECT_EQ(done, (std::vector<std::string>{"point_twill", "red", "plain"})) << res;
+  for (const auto& name : {"point_twill", "red", "plain"})
+    EXPECT_TRUE(loom::validate_atlas(out / name).empty()) << name;
+  EXPECT_FALSE(fs::exists(out / "notes")) << "a file that is not a spec was baked";
+  // Two of one name, and a bad spec: refused before any work.
+  const fs::path out2 = dir / "out2";
+  std::ofstream(dir / "bad.json") << R"({"density": {"warp_per_cm": 0}})";
+  EXPECT_EQ(loom::test::run(exe + " bake " + (dir / "bad.json").string() + " " +
+                                (specs / "red.json").string() + " " + specs.string() +
+                                " --quality draft -o " + out2.string() + " 2>&1",
+                            &res),
+            2)
+      << res;
+  EXPECT_NE(res.find("bad.json: $.density.warp_per_cm"), std::string::npos) << res;
+  EXPECT_NE(res.find("both would bake into"), std::string::npos) << res;
+  EXPECT_FALSE(fs::exists(out2)) << "a refused batch wrote something";
 }
 
 }  // namespace

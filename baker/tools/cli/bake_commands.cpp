@@ -2,7 +2,10 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <map>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -17,20 +20,74 @@
 #include "loom/weave.h"
 
 using nlohmann::json;
+namespace fs = std::filesystem;
 
 namespace loom::cli {
 
+namespace {
+
+/// The bakes a command line asks for: (spec, atlas directory). One spec file or preset bakes
+/// into -o; several, or a folder (its *.json and *.wif, sorted), each into -o/<name> (the spec
+/// file's stem or the preset's name). Problems (an empty folder, two specs of one name) go to
+/// `errors`.
+std::vector<std::pair<std::string, fs::path>> bake_jobs(const std::vector<std::string>& specs,
+                                                        const fs::path& out,
+                                                        std::vector<std::string>& errors) {
+  std::vector<std::string> all;
+  for (const std::string& s : specs) {
+    if (!fs::is_directory(s)) {
+      all.push_back(s);
+      continue;
+    }
+    std::vector<std::string> found;
+    for (const auto& e : fs::directory_iterator(s)) {
+      std::string ext = e.path().extension().string();
+      for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+      if (e.is_regular_file() && (ext == ".json" || ext == ".wif"))
+        found.push_back(e.path().string());
+    }
+    std::sort(found.begin(), found.end());
+    if (found.empty()) errors.push_back(fmt::format("{}: a folder without specs (*.json, *.wif)", s));
+    all.insert(all.end(), found.begin(), found.end());
+  }
+  std::vector<std::pair<std::string, fs::path>> jobs;
+  if (all.size() == 1 && specs.size() == 1 && !fs::is_directory(specs[0])) {
+    jobs.push_back({all[0], out});
+    return jobs;
+  }
+  std::map<std::string, std::string> by_name;
+  for (const std::string& s : all) {
+    const std::string name = fs::exists(s) ? fs::path(s).stem().string() : s;
+    auto [it, fresh] = by_name.emplace(name, s);
+    if (!fresh)
+      errors.push_back(fmt::format("{} and {}: both would bake into {}; give them different "
+                                   "names",
+                                   it->second, s, (out / name).string()));
+    jobs.push_back({s, out / name});
+  }
+  return jobs;
+}
+
+}  // namespace
+
 void add_bake(CLI::App& app, Commands& out) {
   struct Args {
-    std::string spec, out_dir, quality, ocio, progress = "auto";
+    std::vector<std::string> specs;
+    std::string out_dir, quality, ocio, progress = "auto";
     bool force = false;
     std::vector<std::string> reuse;
   };
   auto a = std::make_shared<Args>();
-  auto* c = app.add_subcommand("bake", "bake a spec (file or preset name) into an atlas");
-  c->add_option("spec", a->spec, spec_help())
+  auto* c = app.add_subcommand(
+      "bake", "bake a spec (file or preset name) into an atlas; several, or a folder of them, "
+              "each into its own atlas");
+  c->add_option("spec", a->specs,
+                spec_help() + "; several specs, or a folder (its *.json and *.wif), bake one "
+                              "after the other (each on all --threads), each into -o/<name>")
       ->required();
-  c->add_option("-o,--output", a->out_dir, "atlas directory to create (published atomically)")
+  c->add_option("-o,--output", a->out_dir,
+                "atlas directory to create (published atomically); with several specs the "
+                "folder their atlases go into")
       ->required();
   c->add_option("--quality", a->quality, "override model.quality: draft|preview|final|reference");
   c->add_option("--ocio-config", a->ocio,
@@ -56,75 +113,99 @@ void add_bake(CLI::App& app, Commands& out) {
     if (mode == "auto")
       mode = verbosity() == 2 ? "lines" : isatty(2) ? "text" : "none";
     if (verbosity() == 0 && mode != "json") mode = "none";  // -q: nothing on stderr but errors
+    std::vector<std::string> problems;
+    const auto jobs = bake_jobs(a->specs, a->out_dir, problems);
+    const bool batch = jobs.size() != 1 || jobs[0].second != fs::path(a->out_dir);
+    const std::string what = batch ? fmt::format("{} specs", jobs.size()) : a->specs[0];
     // With --progress=json every failure is also a JSON line on stdout, where the progress goes:
-    // {"error": what, "errors": [each problem], "exit": code} (stderr keeps the text).
-    auto fail = [&](const std::vector<std::string>& errors, int code) {
-      if (mode == "json")
-        std::cout << json{{"error", errors.size() == 1 ? errors[0]
-                                                       : fmt::format("{}: {} problems", a->spec,
-                                                                     errors.size())},
-                          {"errors", errors},
-                          {"exit", code}}
-                         .dump()
-                  << std::endl;
+    // {"error": what, "errors": [each problem], "exit": code} (stderr keeps the text), with
+    // "spec" in a batch.
+    auto fail = [&](const std::vector<std::string>& errors, int code, const std::string& spec) {
+      if (mode == "json") {
+        json j{{"error", errors.size() == 1 ? errors[0]
+                                            : fmt::format("{}: {} problems", spec, errors.size())},
+               {"errors", errors},
+               {"exit", code}};
+        if (batch) j["spec"] = spec;
+        std::cout << j.dump() << std::endl;
+      }
       return code;
     };
-    auto res = loom::load_spec(a->spec, a->quality);
-    if (!res.ok()) return fail(res.errors, report_spec_errors(a->spec, res.errors));
-    // -v's stage lines: the stage reporting now and when it began.
-    using Clock = std::chrono::steady_clock;
-    auto stage_now = std::make_shared<std::pair<std::string, Clock::time_point>>("", Clock::now());
-    auto end_stage = [](std::pair<std::string, Clock::time_point>& s) {
-      const auto now = Clock::now();
-      if (!s.first.empty())
-        std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", s.first,
-                                 std::chrono::duration<double>(now - s.second).count());
-      s.second = now;
-    };
-    loom::BakeOptions opt;
-    opt.ocio_config = a->ocio;
-    opt.force = a->force;
-    for (const auto& d : a->reuse) opt.reuse_from.emplace_back(d);
-    if (mode == "json") {
-      opt.progress = [](const std::string& stage, double f) {
-        std::cout << json{{"stage", stage}, {"fraction", f}}.dump() << std::endl;
-      };
-    } else if (mode == "lines") {  // -v: each stage once, when the next begins (the last at
-                                   // the end), with its time from its first report to there
-      opt.progress = [stage_now, end_stage](const std::string& stage, double) {
-        if (stage != stage_now->first) end_stage(*stage_now), stage_now->first = stage;
-      };
-    } else if (mode == "text") {
-      opt.progress = [](const std::string& stage, double f) {
-        std::cerr << fmt::format("\r{:<12} {:3.0f}%", stage, 100 * f) << std::flush;
-        if (f >= 1.0) std::cerr << "\n";
-      };
+    // Every spec and destination is checked before any work: bad input writes nothing.
+    std::vector<loom::FabricSpec> parsed;
+    for (const auto& [spec, dir] : jobs) {
+      auto res = loom::load_spec(spec, a->quality);
+      for (const auto& e : res.errors) problems.push_back(batch ? spec + ": " + e : e);
+      parsed.push_back(res.spec);
+      try {  // a destination that is not an atlas is bad input (exit 2)
+        loom::check_bake_destination(dir);
+      } catch (const std::runtime_error& e) {
+        problems.push_back(std::string("-o: ") + e.what());
+      }
     }
-    try {  // a destination that is not an atlas is bad input (exit 2), found before any work
-      loom::check_bake_destination(a->out_dir);
-    } catch (const std::runtime_error& e) {
-      std::cerr << "error: -o: " << e.what() << "\n";
-      return fail({std::string("-o: ") + e.what()}, 2);
+    if (batch && fs::exists(a->out_dir) && !fs::is_directory(a->out_dir))
+      problems.push_back(fmt::format("-o: {} exists and is not a folder", a->out_dir));
+    if (!problems.empty()) return fail(problems, report_spec_errors(what, problems), what);
+    int worst = 0;
+    for (size_t k = 0; k < jobs.size(); ++k) {
+      const auto& [spec, dir] = jobs[k];
+      // -v's stage lines: the stage reporting now and when it began.
+      using Clock = std::chrono::steady_clock;
+      auto stage_now =
+          std::make_shared<std::pair<std::string, Clock::time_point>>("", Clock::now());
+      auto end_stage = [](std::pair<std::string, Clock::time_point>& s) {
+        const auto now = Clock::now();
+        if (!s.first.empty())
+          std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", s.first,
+                                   std::chrono::duration<double>(now - s.second).count());
+        s.second = now;
+      };
+      loom::BakeOptions opt;
+      opt.ocio_config = a->ocio;
+      opt.force = a->force;
+      for (const auto& d : a->reuse) opt.reuse_from.emplace_back(d);
+      const std::string tag = batch ? spec : "";
+      if (mode == "json") {
+        opt.progress = [tag](const std::string& stage, double f) {
+          json j{{"stage", stage}, {"fraction", f}};
+          if (!tag.empty()) j["spec"] = tag;
+          std::cout << j.dump() << std::endl;
+        };
+      } else if (mode == "lines") {  // -v: each stage once, when the next begins (the last at
+                                     // the end), with its time from its first report to there
+        opt.progress = [stage_now, end_stage](const std::string& stage, double) {
+          if (stage != stage_now->first) end_stage(*stage_now), stage_now->first = stage;
+        };
+      } else if (mode == "text") {
+        opt.progress = [](const std::string& stage, double f) {
+          std::cerr << fmt::format("\r{:<12} {:3.0f}%", stage, 100 * f) << std::flush;
+          if (f >= 1.0) std::cerr << "\n";
+        };
+      }
+      if (batch && mode != "none" && mode != "json")
+        std::cerr << fmt::format("loom-bake: {} -> {}\n", spec, dir.string());
+      loom::BakeResult r;
+      try {
+        r = loom::bake_atlas(parsed[k], dir, opt);
+      } catch (const std::exception& e) {
+        // (main reports these on stderr: a bad value exits 2, anything else 1)
+        const int code = dynamic_cast<const loom::CliValueError*>(&e) ? 2 : 1;
+        fail({e.what()}, code, spec);
+        if (!batch) throw;
+        std::cerr << "error: " << spec << ": " << e.what() << "\n";
+        worst = std::max(worst, code);  // the others still bake
+        continue;
+      }
+      if (mode == "lines") end_stage(*stage_now);
+      json done{{"atlas", r.dir.string()},
+                {"reused", r.reused},
+                {"reused_simulation", r.reused_simulation.string()},
+                {"seconds", r.seconds},
+                {"bytes", r.bytes}};
+      if (batch) done["spec"] = spec;
+      std::cout << done.dump() << std::endl;
     }
-    loom::BakeResult r;
-    try {
-      r = loom::bake_atlas(res.spec, a->out_dir, opt);
-    } catch (const loom::CliValueError& e) {  // (main reports these on stderr, exit 2 and 1)
-      fail({e.what()}, 2);
-      throw;
-    } catch (const std::exception& e) {
-      fail({e.what()}, 1);
-      throw;
-    }
-    if (mode == "lines") end_stage(*stage_now);
-    std::cout << json{{"atlas", r.dir.string()},
-                      {"reused", r.reused},
-                      {"reused_simulation", r.reused_simulation.string()},
-                      {"seconds", r.seconds},
-                      {"bytes", r.bytes}}
-                     .dump()
-              << std::endl;
-    return 0;
+    return worst;
   }});
 }
 
