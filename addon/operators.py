@@ -39,8 +39,8 @@ def _spec_for_scene(context, mat, exe: str, spec: str, cache: str) -> str:
     needs = scene_needs.scene_needs(obj, context.scene, float(yarn["yarn_diameter_um"]),
                                     float(yarn["ply_diameter_um"]), int(yarn["plies"]),
                                     float(geo["repeat_um"][0]), repeats)
-    s.needs_report = "\n".join([f"Needs: {needs.tier} tier"] + needs.reasons)
     derived = scene_needs.spec_for_needs(canon, needs)
+    s.needs_report = "\n".join([f"Needs: {needs.tier} tier"] + needs.reasons)
     text = json.dumps(derived, sort_keys=True, indent=1)
     name = bakery.cache_entry(text, s.quality)[0]
     folder = os.path.join(cache, "specs")
@@ -409,19 +409,21 @@ class LOOM_OT_import_wif(Operator, ImportHelper):
 
     filename_ext = ".wif"
     filter_glob: StringProperty(default="*.wif;*.WIF", options={"HIDDEN"})
+    # Not remembered between calls: a path set on invoke means a file dropped on a viewport.
+    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE", "HIDDEN"})
     size: bpy.props.FloatProperty(name="Size", description="Side of the cloth plane",
                                   default=0.2, min=1e-3, soft_max=10.0, unit="LENGTH")
 
     def invoke(self, context, event):
         if self.filepath:  # dropped on a 3D viewport (LOOM_FH_wif)
-            return self.execute(context) if context.window is None else self._start(context)
+            return self.execute(context)
         return ImportHelper.invoke(self, context, event)
 
     def execute(self, context):
-        return self._start(context)
-
-    def _start(self, context):
         path = bpy.path.abspath(self.filepath)
+        if context.window_manager.loom_bake_running:
+            self.report({"ERROR"}, "Loom: a bake is already running")
+            return {"CANCELLED"}
         exe = preferences.find_loom_bake()
         if exe is None:
             self.report({"ERROR"}, "Loom: loom-bake not found (add-on preferences, $LOOM_BAKE "
@@ -433,15 +435,30 @@ class LOOM_OT_import_wif(Operator, ImportHelper):
         except bakery.LoomBakeError as exc:
             self.report({"ERROR"}, f"Loom: {exc}")
             return {"CANCELLED"}
+        if context.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
         name = os.path.splitext(os.path.basename(path))[0] or "Weaving Draft"
         obj = _cloth_plane(context, name, self.size)
         mat = material.ensure_material(obj, name=name)
         mat.loom.source = "FILE"
         mat.loom.spec_path = path
         mat.loom.model = "SPEC"  # the draft's tier (per-thread colours: surface only for now)
+        # Bake & Assign: modal with a window (it goes on after this returns), else to the end.
         how = "INVOKE_DEFAULT" if context.window is not None else "EXEC_DEFAULT"
-        with context.temp_override(object=obj, active_object=obj, material=mat):
-            return bpy.ops.loom.bake_assign(how)
+        error = ""
+        try:
+            with context.temp_override(object=obj, active_object=obj, material=mat):
+                result = bpy.ops.loom.bake_assign(how)
+        except RuntimeError as exc:  # its ERROR report, raised where there is no window
+            result, error = {"CANCELLED"}, str(exc)
+        if "CANCELLED" in result:  # nothing half-made is left behind
+            mesh = obj.data
+            bpy.data.objects.remove(obj)
+            bpy.data.meshes.remove(mesh)
+            bpy.data.materials.remove(mat)
+            self.report({"ERROR"}, f"Loom: {path} was not baked{': ' + error if error else ''}")
+            return {"CANCELLED"}
+        return {"FINISHED"}
 
 
 class LOOM_FH_wif(bpy.types.FileHandler):

@@ -149,10 +149,16 @@ def spec_for_needs(canonical: dict, needs: SceneNeeds) -> dict:
     ``needs`` asks for: model.tier; components.transmission (both tiers; the ray-wave tier's
     forward lobes are part of its fitted ply scattering and stay), components.double_layer,
     components.multi_ply and wave.diffraction (ray-wave). What the spec had switched off stays
-    off: a need only removes work."""
+    off: a need only removes work. A spec with per-thread yarn sequences stays on the surface
+    tier (``needs`` says so)."""
     import copy
 
     spec = copy.deepcopy(canonical)
+    threads = any(isinstance(spec.get(y), dict) and "sequence" in spec[y] for y in ("warp", "weft"))
+    if needs.tier == "raywave" and threads:  # (the ray-wave tier refuses them: issue 33)
+        needs.tier = "surface"
+        needs.reasons.append("per-thread yarn types (stripes, checks): the ray-wave tier does not "
+                             "take them yet, surface tier")
     spec.setdefault("model", {})["tier"] = needs.tier
     comp = spec.setdefault("components", {})
     wave = spec.setdefault("wave", {})

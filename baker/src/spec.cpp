@@ -376,12 +376,14 @@ void read_sequence(const json& j, const std::string& path, const std::vector<Yar
       continue;
     }
     total += e[1].get<int64_t>();
+    if (total > kMaxRepeatYarns) break;  // (reported below; the runs need not be kept)
     if (!runs.empty() && runs.back().type == type)
       runs.back().count += e[1].get<int>();  // adjacent runs of one type are one run
     else
       runs.push_back({type, e[1].get<int>()});
   }
-  if (total > kMaxRepeatYarns) errors.push_back(fmt::format("{}: {} threads; {}", path, total, want));
+  if (total > kMaxRepeatYarns)
+    errors.push_back(fmt::format("{}: more than {} threads; {}", path, kMaxRepeatYarns, want));
 }
 
 }  // namespace

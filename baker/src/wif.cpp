@@ -68,32 +68,30 @@ class Reader {
       if (const size_t c = line.find(';'); c != std::string::npos) line.resize(c);
       line = trim(line);
       if (line.empty()) continue;
-      if (line.front() == '[') {
-        if (line.back() != ']') {
-          error(n, "", fmt::format("\"{}\" is not a section header ([NAME])", line));
-          cur.clear();
-          continue;
-        }
+      if (line.front() == '[' && line.back() == ']') {
         cur = upper(trim(line.substr(1, line.size() - 2)));
-        if (sections_.count(cur))
+        if (sections_.count(cur) && known(cur))
           error(n, cur, fmt::format("the section appears twice (first at line {})",
                                     sections_[cur].line));
-        else
+        else if (!sections_.count(cur))
           sections_[cur].line = n;
         continue;
       }
       const size_t eq = line.find('=');
       if (cur.empty()) {
-        error(n, "", "a line before the first section");
+        error(n, "", line.front() == '['
+                         ? fmt::format("\"{}\" is not a section header ([NAME])", line)
+                         : std::string("a line before the first section"));
         continue;
       }
+      if (!known(cur)) continue;  // [TEXT], [NOTES], private sections: anything goes
       if (eq == std::string::npos) {
-        if (known(cur)) error(n, cur, fmt::format("\"{}\" is not a KEY=VALUE line", line));
+        error(n, cur, fmt::format("\"{}\" is not a KEY=VALUE line", line));
         continue;
       }
       const std::string key = upper(trim(line.substr(0, eq)));
       Section& s = sections_[cur];
-      if (s.entries.count(key) && known(cur))
+      if (s.entries.count(key))
         error(n, cur, fmt::format("{} given twice (first at line {})", key, s.entries[key].line));
       s.entries[key] = {trim(line.substr(eq + 1)), n, trim(line.substr(0, eq))};
     }
@@ -148,12 +146,14 @@ class Reader {
   std::map<std::string, Section> sections_;
 };
 
-/// "3,4" -> {3, 4}; "" -> {}; 0 entries dropped. False on anything else or outside [0, hi].
+/// "3,4" -> {3, 4}; "" -> {}; 0 entries dropped. False on anything else, outside [0, hi], or
+/// longer than kWifMaxShafts numbers (no thread has more shafts or treadles, nor more colours).
 bool int_list(const std::string& v, int hi, std::vector<int>& out) {
   out.clear();
   if (v.empty()) return true;
-  size_t pos = 0;
+  size_t pos = 0, count = 0;
   while (pos <= v.size()) {
+    if (++count > size_t(kWifMaxShafts)) return false;
     size_t end = v.find(',', pos);
     if (end == std::string::npos) end = v.size();
     const std::string t = trim(v.substr(pos, end - pos));
@@ -188,8 +188,9 @@ void per_thread(Reader& r, const std::string& section, int count, const std::str
     }
     if (!int_list(e.value, hi, out[size_t(t - 1)]))
       r.error(e.line, section,
-              fmt::format("{}={}: expected numbers in [1, {}] ({}) separated by commas", e.key,
-                          e.value, hi, hi_what));
+              fmt::format("{}={}: expected numbers in [1, {}] ({}; 0 or nothing: none) "
+                          "separated by commas",
+                          e.key, e.value, hi, hi_what));
   }
 }
 
@@ -258,7 +259,7 @@ WifResult parse_wif(const std::string& text_in, const std::string& name) {
         r.missing(s, "the section is missing (a draft needs [TIEUP] and [TREADLING], or "
                      "[LIFTPLAN])");
   d.shafts = r.integer("WEAVING", "SHAFTS", 1, kWifMaxShafts, true).value_or(0);
-  d.treadles = r.integer("WEAVING", "TREADLES", 1, kWifMaxShafts, !lift).value_or(0);
+  d.treadles = r.integer("WEAVING", "TREADLES", lift ? 0 : 1, kWifMaxShafts, !lift).value_or(0);
   if (const Section* w = r.section("WEAVING")) {
     if (auto it = w->entries.find("RISING SHED"); it != w->entries.end()) {
       const std::string v = upper(it->second.value);
@@ -360,7 +361,10 @@ WifResult parse_wif(const std::string& text_in, const std::string& name) {
       if (idx[size_t(t)].size() != 1 || !table.count(k)) {
         const auto it = s->entries.find(std::to_string(t + 1));
         r.error(it == s->entries.end() ? s->line : it->second.line, system + " COLORS",
-                fmt::format("thread {}: colour {} is not an index of [COLOR TABLE]", t + 1, k));
+                idx[size_t(t)].size() != 1
+                    ? fmt::format("thread {}: one colour index per thread", t + 1)
+                    : fmt::format("thread {}: colour {} is not an index of [COLOR TABLE]", t + 1,
+                                  k));
         continue;
       }
       (*out)[size_t(t)] = table[k];
@@ -395,163 +399,6 @@ std::vector<std::vector<int>> wif_interlacing(const WifDraft& d) {
     }
   }
   return m;
-}
-
-std::vector<std::vector<int>> smallest_repeat(const std::vector<std::vector<int>>& m) {
-  if (m.empty() || m[0].empty()) return m;
-  const size_t R = m.size(), C = m[0].size();
-  size_t pr = R, pc = C;
-  for (size_t p = 1; p < R; ++p) {
-    if (R % p) continue;
-    bool ok = true;
-    for (size_t i = p; i < R && ok; ++i) ok = m[i] == m[i % p];
-    if (ok) { pr = p; break; }
-  }
-  for (size_t q = 1; q < C; ++q) {
-    if (C % q) continue;
-    bool ok = true;
-    for (size_t i = 0; i < R && ok; ++i)
-      for (size_t j = q; j < C && ok; ++j) ok = m[i][j] == m[i][j % q];
-    if (ok) { pc = q; break; }
-  }
-  std::vector<std::vector<int>> out(pr);
-  for (size_t i = 0; i < pr; ++i) out[i].assign(m[i].begin(), m[i].begin() + long(pc));
-  return out;
-}
-
-WifSpec wif_spec(const WifDraft& d, const std::string& name, std::vector<std::string>& errors) {
-  WifSpec out;
-  const auto m = wif_interlacing(d);
-  const char* pick_section = d.has_liftplan ? "[LIFTPLAN]" : "[TREADLING]";
-  for (int i = 0; i < d.warp_threads; ++i) {
-    int s = 0;
-    for (int v : m[size_t(i)]) s += v;
-    if (s == 0 || s == d.weft_threads)
-      errors.push_back(fmt::format("{} [THREADING]: warp thread {} lies {} every pick (shafts: "
-                                   "{}); every thread must go over and under",
-                                   name, i + 1, s ? "over" : "under",
-                                   d.threading[size_t(i)].empty()
-                                       ? std::string("none")
-                                       : fmt::format("{}", fmt::join(d.threading[size_t(i)], ","))));
-  }
-  for (int j = 0; j < d.weft_threads; ++j) {
-    int s = 0;
-    for (int i = 0; i < d.warp_threads; ++i) s += m[size_t(i)][size_t(j)];
-    if (s == 0 || s == d.warp_threads)
-      errors.push_back(fmt::format("{} {}: pick {} lies {} every warp thread; every pick must go "
-                                   "over and under",
-                                   name, pick_section, j + 1, s ? "under" : "over"));
-  }
-  json doc = {{"schema", "loom.fabric/1"},
-              {"name", name},
-              {"weave", {{"pattern", "custom"}, {"matrix", smallest_repeat(m)}}}};
-  // A system of one colour gets it; one of several a sequence of yarn types, one per distinct
-  // colour of the draft ("color_1", ... in order of appearance, warp first).
-  std::vector<std::vector<double>> palette;
-  auto type_of = [&](const std::vector<double>& c) {
-    auto it = std::find(palette.begin(), palette.end(), c);
-    if (it == palette.end()) it = palette.insert(palette.end(), c);
-    return "color_" + std::to_string(it - palette.begin() + 1);
-  };
-  json types = json::object();
-  for (const auto& [system, colours, spacing, thickness] :
-       {std::tuple{"warp", &d.warp_colour, d.warp_spacing_cm, d.warp_thickness_cm},
-        std::tuple{"weft", &d.weft_colour, d.weft_spacing_cm, d.weft_thickness_cm}}) {
-    std::vector<std::vector<double>> distinct;
-    for (const auto& c : *colours)
-      if (!c.empty() && std::find(distinct.begin(), distinct.end(), c) == distinct.end())
-        distinct.push_back(c);
-    json y = json::object();
-    if (distinct.size() == 1) y["color"] = {{"srgb", distinct[0]}};
-    if (distinct.size() > 1) {
-      std::vector<std::string> ts;  // each thread's type
-      std::vector<double> use = distinct[0];
-      for (const auto& c : *colours) {
-        // A thread the draft leaves without a colour takes the one before it (the first: the
-        // first coloured one).
-        if (!c.empty()) use = c;
-        ts.push_back(type_of(use));
-        types[ts.back()] = {{"color", {{"srgb", use}}}};
-      }
-      // The sequence's smallest period that divides the draft (as the interlacing's).
-      size_t period = ts.size();
-      for (size_t p = 1; p < ts.size(); ++p) {
-        if (ts.size() % p) continue;
-        bool ok = true;
-        for (size_t k = p; k < ts.size() && ok; ++k) ok = ts[k] == ts[k % p];
-        if (ok) { period = p; break; }
-      }
-      json runs = json::array();
-      for (size_t k = 0; k < period; ++k)
-        if (!runs.empty() && runs.back()[0] == ts[k])
-          runs.back()[1] = runs.back()[1].get<int>() + 1;
-        else
-          runs.push_back({ts[k], 1});
-      y["sequence"] = runs;
-    }
-    if (thickness > 0) y["yarn_diameter_um"] = thickness * 1e4;
-    if (spacing > 0) doc["density"][std::string(system) + "_per_cm"] = 1.0 / spacing;
-    if (!y.empty()) doc[system] = y;
-  }
-  if (!types.empty()) doc["yarn_types"] = types;
-  out.doc = std::move(doc);
-  return out;
-}
-
-json merge_draft_spec(const json& user, const WifSpec& draft, double ply_per_yarn,
-                      std::vector<std::string>& errors) {
-  json doc = draft.doc;
-  const json none = json::object();
-  auto obj = [&](const json& j, const char* k) -> const json& {
-    return j.is_object() && j.contains(k) && j[k].is_object() ? j[k] : none;
-  };
-  const json& yarn = obj(user, "yarn");
-  for (const char* system : {"warp", "weft"}) {
-    const json& mine = obj(user, system);
-    json& theirs = doc[system];
-    if (theirs.is_null()) theirs = json::object();
-    for (auto& [k, v] : yarn.items()) theirs.erase(k);  // "yarn" sets both systems
-    if (mine.contains("color") || yarn.contains("color")) theirs.erase("sequence");
-    if (theirs.contains("yarn_diameter_um") && !mine.contains("ply_diameter_um") &&
-        !yarn.contains("ply_diameter_um") && !mine.contains("yarn_diameter_um") &&
-        !yarn.contains("yarn_diameter_um"))
-      theirs["ply_diameter_um"] = theirs["yarn_diameter_um"].get<double>() * ply_per_yarn;
-    for (auto& [k, v] : mine.items()) theirs[k] = v;
-    if (theirs.empty()) doc.erase(system);
-  }
-  if (user.is_object())
-    for (auto& [k, v] : user.items()) {
-      if (k == "warp" || k == "weft") continue;
-      if (k == "weave") {
-        for (auto& [wk, wv] : v.items())
-          if (wk != "wif")
-            errors.push_back(fmt::format("$.weave.{}: not allowed next to \"wif\" (the draft "
-                                         "gives the interlacing)",
-                                         wk));
-        continue;
-      }
-      if ((k == "density" || k == "yarn_types") && v.is_object() && doc.contains(k)) {
-        for (auto& [dk, dv] : v.items()) doc[k][dk] = dv;
-        continue;
-      }
-      doc[k] = v;
-    }
-  // The draft's yarn types no sequence uses any more (a colour the spec gave instead).
-  if (doc.contains("yarn_types") && doc["yarn_types"].is_object()) {
-    std::vector<std::string> unused;
-    for (auto& [name, t] : doc["yarn_types"].items()) {
-      bool used = obj(user, "yarn_types").contains(name);
-      for (const char* system : {"warp", "weft", "yarn"})
-        if (doc.contains(system) && doc[system].is_object() && doc[system].contains("sequence") &&
-            doc[system]["sequence"].is_array())
-          for (const auto& run : doc[system]["sequence"])
-            used = used || (run.is_array() && !run.empty() && run[0] == name);
-      if (!used) unused.push_back(name);
-    }
-    for (const auto& n : unused) doc["yarn_types"].erase(n);
-    if (doc["yarn_types"].empty()) doc.erase("yarn_types");
-  }
-  return doc;
 }
 
 }  // namespace loom

@@ -4,8 +4,9 @@
         -- --loom-bake LOOM_BAKE [--out DIR]
 
 A good draft becomes a new cloth plane with a Loom material baked from it (the draft's yarn
-types in its atlas); a bad draft is refused with the section and line named and changes nothing
-(no object, no material); unregistering removes the menu entry and the file handler.
+types in its atlas), the user's own object and material untouched; a bad draft is refused with
+the section and line named and changes nothing (no object, no material); unregistering removes
+the menu entry and the file handler.
 """
 
 import os
@@ -29,6 +30,14 @@ def main():
     menu = bpy.types.TOPBAR_MT_file_import
     assert operators.menu_import in getattr(menu.draw, "_draw_funcs", []), "no File > Import entry"
     assert hasattr(bpy.types, "LOOM_FH_wif"), "no file handler for dropped .wif files"
+
+    # The user's own object and material, selected and active: left as they are.
+    mine = lt.add_plane("Mine", half=0.5)
+    own = lt.diffuse_material("Own", (0.2, 0.4, 0.6))
+    mine.data.materials.append(own)
+    bpy.context.view_layer.objects.active = mine
+    mine.select_set(True)
+    own_nodes = sorted(n.bl_idname for n in own.node_tree.nodes)
 
     # A bad draft: refused, nothing made.
     bad = os.path.join(args.out, "bad.wif")
@@ -66,6 +75,9 @@ def main():
     assert spec["warp"]["sequence"] == [["color_1", 4], ["color_2", 4]], spec["warp"]
     assert set(spec["yarn_types"]) == {"color_1", "color_2"}, spec.get("yarn_types")
     print(f"loom-test: imported {draft} as {obj.name} with {mat.name} from {atlas}")
+    assert mine.active_material == own and not own.loom.managed, "the user's material changed"
+    assert sorted(n.bl_idname for n in own.node_tree.nodes) == own_nodes
+    assert not mine.select_get(), "the import left the user's object selected"
 
     lt.disable_addon()
     assert operators.menu_import not in getattr(menu.draw, "_draw_funcs", []), \

@@ -132,6 +132,20 @@ TEST(Wif, StraightDrawTwillsAreLoomsTwills) {
       any = any || equal_up_to_shift(rep, loom::make_weave(w).m);
     }
     EXPECT_TRUE(any) << up << "/" << down << ": " << ::testing::PrintToString(rep);
+    // Loom's convention (warp thread i is row i, pick j column j): a straight draw with the
+    // tie-up moving up one shaft per treadle rises to the right, a Z twill; a reversed
+    // treadling is the S twill.
+    w.direction = "Z";
+    EXPECT_TRUE(equal_up_to_shift(rep, loom::make_weave(w).m)) << up << "/" << down;
+    std::vector<int> reversed;
+    for (int i = 0; i < 3 * n; ++i) reversed.push_back(n - i % n);
+    const loom::WifResult rr =
+        loom::parse_wif(wif_text(threading, tieup, reversed, n, false, false), "twill");
+    ASSERT_TRUE(rr.ok());
+    w.direction = "S";
+    EXPECT_TRUE(equal_up_to_shift(loom::smallest_repeat(loom::wif_interlacing(rr.draft)),
+                                  loom::make_weave(w).m))
+        << up << "/" << down;
   }
 }
 
@@ -178,6 +192,23 @@ TEST(Wif, ReadsWhatDraftsWrite) {
   EXPECT_NE(errors[1].find("warp thread 3 lies under every pick (shafts: none)"), std::string::npos);
 }
 
+TEST(Wif, LiftPlansNeedNoTreadlesAndNotesMayHoldAnything) {
+  // A lift plan without treadles (absent or 0), a sinking shed, a [NOTES] section holding what
+  // no known section may, a UTF-8 byte-order mark and a Thickness in centimetres.
+  for (const char* treadles : {"", "Treadles=0\n"}) {
+    const std::string text = std::string("\xEF\xBB\xBF[WIF]\n[WEAVING]\nShafts=2\n") + treadles +
+                             "Rising Shed=no\n[WARP]\nThreads=2\nThickness=0.02\n[WEFT]\n"
+                             "Threads=2\n[THREADING]\n1=1\n2=2\n[LIFTPLAN]\n1=1\n2=2\n[NOTES]\n"
+                             "[unclosed\nno key here\n[NOTES]\n";
+    ASSERT_TRUE(loom::looks_like_wif(text));
+    const loom::WifResult r = loom::parse_wif(text, "l.wif");
+    ASSERT_TRUE(r.ok()) << ::testing::PrintToString(r.errors);
+    // sinking: shaft 1 sinks at pick 1, so thread 1 is under it and thread 2 over
+    EXPECT_EQ(loom::wif_interlacing(r.draft), (Matrix{{0, 1}, {1, 0}}));
+    EXPECT_NEAR(r.draft.warp_thickness_cm, 0.02, 1e-12);
+  }
+}
+
 TEST(Wif, BadDraftsNameTheSectionAndLine) {
   const std::string head = "[WIF]\n[WEAVING]\nShafts=2\nTreadles=2\n[WARP]\nThreads=2\n[WEFT]\n"
                            "Threads=2\n";  // lines 1-8
@@ -189,7 +220,7 @@ TEST(Wif, BadDraftsNameTheSectionAndLine) {
       {"[WEAVING]\nShafts=2\n", "[WIF]: the section is missing"},
       {head + "[THREADING]\n1=1\n2=2\n", "[TIEUP]: the section is missing"},
       {head + "[THREADING]\n1=1\n2=3\n[TIEUP]\n1=1\n2=2\n[TREADLING]\n1=1\n2=2\n",
-       "line 11 [THREADING]: 2=3: expected numbers in [1, 2] (shafts)"},
+       "line 11 [THREADING]: 2=3: expected numbers in [1, 2] (shafts;"},
       {head + body + "[THREADING]\n", "line 18 [THREADING]: the section appears twice"},
       {head + "[THREADING]\n1=1\n3=2\n" + body.substr(body.find("[TIEUP]")),
        "line 11 [THREADING]: thread 3 is beyond [WARP] Threads=2"},
@@ -247,6 +278,17 @@ TEST(WifCli, DraftsBakeDirectlyOrFromASpecAndBadOnesWriteNothing) {
   EXPECT_EQ(g["weave"]["matrix"], (nlohmann::json{{1, 0}, {0, 1}}));  // plain, reduced
   EXPECT_NEAR(g["density"]["warp_per_cm"].get<double>(), 1.0 / 0.0635, 1e-9);  // 40 epi
   EXPECT_NEAR(g["warp"]["yarn_diameter_um"].get<double>(), 254.0, 1e-9);
+  // Only the warp's colour given: the warp's sequence goes, the weft keeps its own and the
+  // types it uses.
+  {
+    std::ofstream(dir / "warp.json") << R"({"weave": {"wif": "gingham.wif"},
+                                            "warp": {"color": {"srgb": [0.1, 0.1, 0.8]}}})";
+  }
+  ASSERT_EQ(run(exe + " check " + (dir / "warp.json").string() + " 2>&1", &out), 0) << out;
+  const auto wj = nlohmann::json::parse(out);
+  EXPECT_FALSE(wj["warp"].contains("sequence"));
+  EXPECT_EQ(wj["weft"]["sequence"], gs["weft"]["sequence"]);
+  EXPECT_EQ(wj["yarn_types"].size(), 2u);
   // The spec's colour replaced the draft's sequences, and their yarn types went with them.
   EXPECT_FALSE(g.contains("yarn_types"));
   EXPECT_FALSE(g["warp"].contains("sequence"));
@@ -266,7 +308,7 @@ TEST(WifCli, DraftsBakeDirectlyOrFromASpecAndBadOnesWriteNothing) {
   }
   const std::pair<std::string, std::string> bad[] = {
       {"raywave.json", "$.model.tier: \"raywave\" does not yet take per-thread yarn sequences"},
-      {"missing.json", "$.weave.wif: cannot read"},
+      {"missing.json", "nowhere.wif: cannot read this file"},
       {"extra.json", "$.weave.pattern: not allowed next to \"wif\""},
       {"bad.wif", "bad.wif line 11 [THREADING]: 2=5"}};
   for (const auto& [file, want] : bad) {

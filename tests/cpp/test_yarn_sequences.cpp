@@ -111,7 +111,7 @@ TEST(YarnSequences, BadSequencesNameTheField) {
       {unknown, "$.warp.sequence[0]: \"blue\" is not a yarn type ($.yarn_types: red, white)"},
       {zero, "$.warp.sequence[0]: expected runs [[type, count], ...]"},
       {shape, "$.warp.sequence[0]: expected runs"},
-      {many, "$.warp.sequence: 1200 threads"},
+      {many, "$.warp.sequence: more than 1024 threads"},
       {lcm, "$.warp.sequence: the repeat grows to 3072 warp yarns"},
       {more, "$.yarn_types.red.roughness: yarn types that differ in more than colour are not "
              "yet supported"},

@@ -4,7 +4,7 @@
 #   run_fuzzer.sh FUZZER TARGET OUT_DIR [SECONDS]
 #     FUZZER: the fuzz_TARGET executable; TARGET: spec, manifest, cli_values, texture or wif
 #     OUT_DIR: the corpus grows in OUT_DIR/TARGET (seeded from tests/fuzz/corpus/TARGET, and for
-#       spec the built-in presets); a crash, a sanitizer report or a broken property leaves its
+#       spec the built-in presets, for wif the sample drafts); a crash, a sanitizer report or a broken property leaves its
 #       input in OUT_DIR/TARGET-crash-* and fails the run
 #     SECONDS: default $LOOM_FUZZ_SECONDS, else 30
 # Keep each finding as a test: copy the input into tests/fuzz/corpus/TARGET/ (replayed here at
@@ -24,6 +24,7 @@ corpus=$out/$target
 mkdir -p "$corpus"
 cp "$here/tests/fuzz/corpus/$target"/* "$corpus/"
 [[ $target != spec ]] || cp "$here"/presets/*.json "$here"/presets/samples/*.json "$corpus/"
+[[ $target != wif ]] || cp "$here"/presets/drafts/*.wif "$corpus/"
 # fuzz_manifest adds a freshly baked manifest, fuzz_texture textures from the baker's writer.
 export LOOM_FUZZ_SEED_OUT=$corpus/baked.json LOOM_FUZZ_SEED_DIR=$corpus
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}

@@ -8,9 +8,10 @@
 // [COLOR PALETTE] Range (0,255 when absent), [COLOR TABLE] (index = r,g,b in that range),
 // [WARP COLORS] / [WEFT COLORS] (thread = index). Keys and section names are case-insensitive,
 // sections come in any order, ';' starts a comment, CRLF line ends are read as LF. A thread
-// with no shaft (absent, empty or 0) never rises; a value lists several shafts or treadles
-// separated by commas. Other sections ([TEXT], [NOTES], per-thread spacing and thickness, ...)
-// are ignored.
+// with no shaft (absent, empty or 0) never moves (under every pick with a rising shed, over
+// every pick with a sinking one: refused as not interlacing); a value lists several shafts or
+// treadles separated by commas. Other sections ([TEXT], [NOTES], per-thread spacing and
+// thickness, ...) are ignored, whatever they hold.
 //
 // The interlacing (wif_interlacing): at pick j the shafts of its treadles' tie-ups (or of its
 // lift-plan line) move; with a rising shed warp thread i lies over pick j when one of its shafts

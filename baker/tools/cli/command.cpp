@@ -33,6 +33,12 @@ std::string spec_help() {
   return "spec file (JSON, or a WIF weaving draft: .wif) or preset name (" + names + ")";
 }
 
+void refuse_thread_sequences(loom::SpecResult& res, const std::string& what) {
+  if (res.ok())
+    if (auto e = loom::thread_sequences_not_yet(res.spec, what); !e.empty())
+      res.errors.push_back(e);
+}
+
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors) {
   for (auto& e : errors) std::cerr << "error: " << e << "\n";
   std::cerr << fmt::format("loom-bake: {} has {} problem{}; nothing was written\n", what,

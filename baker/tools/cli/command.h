@@ -8,6 +8,7 @@
 
 #include "loom/atlas.h"
 #include "loom/shading.h"
+#include "loom/spec.h"
 #include <functional>
 #include <string>
 #include <vector>
@@ -43,6 +44,9 @@ int eval_average_closures(const Atlas& atlas, bool average, std::array<double, 2
 
 /// Prints a spec's problems and "nothing was written"; returns 2.
 int report_spec_errors(const std::string& what, const std::vector<std::string>& errors);
+/// Adds to res the "not yet" of a command that knows one colour per system (`what`) when its
+/// valid spec has per-thread yarn sequences (spec.h: thread_sequences_not_yet).
+void refuse_thread_sequences(loom::SpecResult& res, const std::string& what);
 
 // The subcommands (one add_* per subcommand, in --help's order).
 void add_bake(CLI::App& app, Commands& out);           // bake_commands.cpp

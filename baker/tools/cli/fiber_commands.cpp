@@ -35,9 +35,7 @@ void add_fibers(CLI::App& app, Commands& out) {
       ->check(CLI::Range(uint64_t(2), uint64_t(2000000000)));
   out.push_back({c, [a] {
     auto res = loom::load_spec(a->spec);
-    if (res.ok())  // the add-on colours the fibers by system
-      if (auto e = loom::thread_sequences_not_yet(res.spec, "fibers"); !e.empty())
-        res.errors.push_back(e);
+    refuse_thread_sequences(res, "fibers");  // the add-on colours the fibers by system
     if (!res.ok()) return report_spec_errors(a->spec, res.errors);
     const auto rv = loom::parse_cli_region("--region", a->region);
     loom::FiberRegion reg{rv[0], rv[1], rv[2], rv[3]};

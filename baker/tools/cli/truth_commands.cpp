@@ -60,9 +60,7 @@ bool write_truth_image(const loom::TruthResult& r, const loom::Vec3d& wi, const 
 
 int eval_truth(const EvalTruthArgs& a) {
   auto res = loom::load_spec(a.spec);
-  if (res.ok())
-    if (auto e = loom::thread_sequences_not_yet(res.spec, "eval truth"); !e.empty())
-      res.errors.push_back(e);
+  refuse_thread_sequences(res, "eval truth");
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   loom::resolve_yarn_colours(res.spec, loom::ColourConverter(""));  // as bake does by default
   const auto w = loom::parse_cli_direction("--wi", a.wi);
@@ -201,9 +199,7 @@ int eval_swatch(const SwatchArgs& a) {
   }
   if (!a.atlas.empty()) return eval_atlas_swatch(a);
   auto res = loom::load_spec(a.spec);
-  if (res.ok())
-    if (auto e = loom::thread_sequences_not_yet(res.spec, "eval swatch"); !e.empty())
-      res.errors.push_back(e);
+  refuse_thread_sequences(res, "eval swatch");
   if (!res.ok()) return report_spec_errors(a.spec, res.errors);
   const loom::ColourConverter cc("");
   loom::resolve_yarn_colours(res.spec, cc);  // as bake does by default
