@@ -48,8 +48,9 @@ def bake(spec: str, quality: str = "preview", loom_bake: str | None = None,
     the atlas directory. Blocks; reuses a cached atlas of the same canonical spec."""
     exe = find_loom_bake(loom_bake)
     if exe is None:
-        raise LoomError("loom-bake not found: pass loom_bake=, set it in the add-on "
-                        "preferences, set $LOOM_BAKE, or put it on PATH")
+        raise LoomError("loom-bake not found: install the Loom package that carries it, pass "
+                        "loom_bake=, set it in the add-on preferences, set $LOOM_BAKE, or put "
+                        "it on PATH")
     cache = resolve_cache_dir(cache_dir)
     os.makedirs(cache, exist_ok=True)
     req = bakery.BakeRequest(spec=spec, quality=quality, loom_bake=exe, cache_dir=cache,

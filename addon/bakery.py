@@ -53,9 +53,28 @@ class LoomBakeError(RuntimeError):
         self.stderr = stderr
 
 
+# The baker the extension package carries (scripts/package.sh): bin/loom-bake beside the add-on.
+BUNDLED_LOOM_BAKE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "bin", "loom-bake")
+
+
+def bundled_loom_bake() -> str | None:
+    """The package's own loom-bake, made executable if the installer dropped the bit (zip
+    files do not always carry Unix permissions); None in a source checkout."""
+    path = BUNDLED_LOOM_BAKE
+    if not os.path.isfile(path):
+        return None
+    if not os.access(path, os.X_OK):
+        try:
+            os.chmod(path, os.stat(path).st_mode | 0o755)
+        except OSError:
+            return None
+    return path if os.access(path, os.X_OK) else None
+
+
 def find_loom_bake(preferred: str | None = None) -> str | None:
     """The loom-bake executable: ``preferred`` (the add-on preference) if set, else
-    ``$LOOM_BAKE``, else ``loom-bake`` on PATH. None when nothing usable is found."""
+    ``$LOOM_BAKE``, else the package's own, else ``loom-bake`` on PATH. None when nothing
+    usable is found."""
     for cand in (preferred, os.environ.get("LOOM_BAKE")):
         if cand:
             path = os.path.abspath(os.path.expanduser(cand))
@@ -64,15 +83,16 @@ def find_loom_bake(preferred: str | None = None) -> str | None:
             found = shutil.which(cand)
             if found:
                 return found
-    return shutil.which("loom-bake")
+    return bundled_loom_bake() or shutil.which("loom-bake")
 
 
 def require_loom_bake(preferred: str | None = None) -> str:
     exe = find_loom_bake(preferred)
     if exe is None:
         raise LoomBakeError(
-            "loom-bake not found: set its path in the Loom add-on preferences, set $LOOM_BAKE, "
-            "or put loom-bake on PATH"
+            "loom-bake not found: install the Loom package that carries it (loom-<version>-"
+            "linux-x64.zip), set its path in the Loom add-on preferences, set $LOOM_BAKE, or put "
+            "loom-bake on PATH"
         )
     return exe
 

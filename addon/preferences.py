@@ -12,7 +12,8 @@ class LoomPreferences(AddonPreferences):
 
     loom_bake_path: StringProperty(
         name="loom-bake",
-        description="Path of the loom-bake executable; empty: $LOOM_BAKE, then loom-bake on PATH",
+        description="Path of the loom-bake executable; empty: $LOOM_BAKE, then the one this "
+                    "package carries, then loom-bake on PATH",
         subtype="FILE_PATH",
         default="",
     )

@@ -1,7 +1,7 @@
 // AtlasWriter: the one place an atlas's files are written and published (atlas_writer.h).
 #include "loom/atlas_writer.h"
+#include "loom/publish_dir.h"
 
-#include <fcntl.h>
 #include <signal.h>
 #include <stdio.h>
 #include <unistd.h>
@@ -144,20 +144,15 @@ bool AtlasWriter::publish(const json& manifest, const std::string& bake_key, boo
     if (!out) throw std::runtime_error("writing manifest.json failed");
   }
   // Rename into place, or atomically exchange with an older atlas and remove it.
-  if (::rename(tmp_.c_str(), dir_.c_str()) == 0) {
+  if (publish_directory(tmp_, dir_)) {
     published_ = true;
     return false;
   }
-  if (errno != EEXIST && errno != ENOTEMPTY)
-    throw std::runtime_error(fmt::format("cannot publish {}: {}", dir_.string(),
-                                         std::strerror(errno)));
   json other;
   if (!force && validate_atlas(dir_, &other).empty() &&
       string_field(other, "bake_key") == bake_key)
     return true;  // a concurrent bake of the same spec won the race; ~AtlasWriter removes ours
-  if (::renameat2(AT_FDCWD, tmp_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) != 0)
-    throw std::runtime_error(fmt::format("cannot replace {}: {}", dir_.string(),
-                                         std::strerror(errno)));
+  exchange_directories(tmp_, dir_);
   // The temporary's name now holds the old atlas, which the destructor removes.
   return false;
 }

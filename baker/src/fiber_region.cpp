@@ -1,6 +1,5 @@
 #include "loom/fiber_region.h"
 
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -15,6 +14,7 @@
 
 #include "loom/atlas.h"
 #include "loom/fiber_lookup.h"
+#include "loom/publish_dir.h"
 #include "loom/procedural_ply.h"
 #include "loom/weave.h"
 #include "loom/woven_patch.h"
@@ -266,11 +266,8 @@ void write_fiber_curves(const FiberCurves& c, const FabricSpec& s, const FiberRe
       o.close();
       if (!o) throw std::runtime_error("writing manifest.json failed");
     }
-    if (::rename(tmp.c_str(), dir.c_str()) != 0) {
-      if (errno != EEXIST && errno != ENOTEMPTY)
-        throw std::runtime_error(fmt::format("cannot publish {}: {}", dir.string(), std::strerror(errno)));
-      if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) != 0)
-        throw std::runtime_error(fmt::format("cannot replace {}: {}", dir.string(), std::strerror(errno)));
+    if (!publish_directory(tmp, dir)) {
+      exchange_directories(tmp, dir);
       fs::remove_all(tmp);  // now holds the old curves
     }
   } catch (...) {
