@@ -9,9 +9,11 @@ import sys
 
 import bpy
 
-from . import api, atlas_check, fibers, operators, osl_paths, preferences, properties, ui
+from . import (api, atlas_check, collect, fibers, operators, osl_paths, preferences, properties,
+               ui)
 
-_classes = (*preferences.classes, *properties.classes, *operators.classes, *ui.classes)
+_classes = (*preferences.classes, *properties.classes, *operators.classes, *collect.classes,
+            *ui.classes)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(_classes)
 
 # Scripts and CI write `import loom.api`; installed as an extension this package is
@@ -27,6 +29,7 @@ def register():
     atlas_check.register()
     fibers.register()
     bpy.types.TOPBAR_MT_file_import.append(operators.menu_import)
+    bpy.types.TOPBAR_MT_file_external_data.append(collect.menu_external_data)
     for name, module in _ALIASES.items():
         if __name__ != "loom":
             sys.modules.setdefault(name, module)
@@ -36,6 +39,7 @@ def unregister():
     for name, module in _ALIASES.items():
         if __name__ != "loom" and sys.modules.get(name) is module:
             del sys.modules[name]
+    bpy.types.TOPBAR_MT_file_external_data.remove(collect.menu_external_data)
     bpy.types.TOPBAR_MT_file_import.remove(operators.menu_import)
     fibers.unregister()
     atlas_check.unregister()

@@ -40,7 +40,7 @@ def loom_node(mat):
     return None
 
 
-def _atlas_and_spec(node):
+def atlas_of(node):
     """(atlas directory, recorded spec hash) of a Loom node; either may be None."""
     if node.bl_idname == "ShaderNodeScript":
         stored = node.get(osl_paths.ATLAS_PROP)
@@ -54,7 +54,7 @@ def _atlas_and_spec(node):
     if atlas is None or not os.path.isdir(atlas):
         # The .blend and its atlas may have moved together: the images (paths relative to the
         # .blend once saved) say where the atlas is now.
-        for img in _images(group):
+        for img in images_of(group):
             path = bpy.path.abspath(img.filepath)
             folder = os.path.dirname(path)
             if os.path.isfile(os.path.join(folder, "manifest.json")):
@@ -63,7 +63,8 @@ def _atlas_and_spec(node):
     return atlas, group.get(material.SPEC_PROP)
 
 
-def _images(tree, seen=None):
+def images_of(tree, seen=None):
+    """Every image a node tree reads, its groups' included."""
     seen = set() if seen is None else seen
     if tree is None or tree.name in seen:
         return
@@ -72,7 +73,7 @@ def _images(tree, seen=None):
         if n.bl_idname == "ShaderNodeTexImage" and n.image is not None:
             yield n.image
         elif n.bl_idname == "ShaderNodeGroup":
-            yield from _images(n.node_tree, seen)
+            yield from images_of(n.node_tree, seen)
 
 
 def atlas_problem(atlas_dir, spec_sha256) -> str | None:
@@ -120,7 +121,11 @@ def material_problem(mat) -> str | None:
     node = loom_node(mat)
     if node is None:
         return None  # not built yet, or built by hand: nothing to check
-    return atlas_problem(*_atlas_and_spec(node))
+    if node.bl_idname != "ShaderNodeScript":
+        imgs = list(images_of(getattr(node, "node_tree", None)))
+        if imgs and all(i.packed_file is not None for i in imgs):
+            return None  # packed (File > External Data > Pack Resources): the maps are in the file
+    return atlas_problem(*atlas_of(node))
 
 
 PREV_PROP = "loom_replaced"  # on the fallback node: what it replaced, to put back

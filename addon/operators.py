@@ -1,6 +1,6 @@
-"""Operators: bake & assign (modal, non-blocking), cancel, assign an existing atlas, new material,
-check what the scene needs (scene_needs.py), import a WIF weaving draft (File > Import, or
-dropped on a 3D viewport).
+"""Operators: bake & assign (modal, non-blocking), bake all Loom materials, cancel, assign an
+existing atlas, new material, check what the scene needs (scene_needs.py), import a WIF weaving
+draft (File > Import, or dropped on a 3D viewport).
 
 Bake & Assign runs loom-bake as a subprocess (bakery.BakeJob) and polls it from a window timer,
 so Blender stays responsive; progress goes to the window manager's progress cursor, the status
@@ -12,20 +12,19 @@ import json
 import os
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import BoolProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ImportHelper
 
-from . import api, bakery, colour_config, fibers, manifest as _manifest, material, preferences
-from . import scene_needs
+from . import api, atlas_check, bakery, colour_config, fibers, manifest as _manifest, material
+from . import preferences, scene_needs
 
 
-def _spec_for_scene(context, mat, exe: str, spec: str, cache: str) -> str:
+def _spec_for_scene(context, mat, obj, exe: str, spec: str, cache: str) -> str:
     """Model "By Scene": the spec with only what the scene needs of the cloth (scene_needs.py),
     written into the cache; the findings go to the material's Scene Needs report. Without a
     camera or UVs to judge from, the spec as it is."""
     s = mat.loom
-    obj = context.object
     geo = bakery.spec_geometry(exe, spec)
     canon = geo["spec"]
     yarn = canon["warp"]
@@ -53,7 +52,7 @@ def _spec_for_scene(context, mat, exe: str, spec: str, cache: str) -> str:
     return path
 
 
-def _request(context, mat) -> bakery.BakeRequest:
+def _request(context, mat, obj) -> bakery.BakeRequest:
     s = mat.loom
     if s.source == "PRESET":
         spec = s.preset
@@ -72,7 +71,7 @@ def _request(context, mat) -> bakery.BakeRequest:
     cache = os.path.abspath(os.path.expanduser(cache or bakery.default_cache_dir()))
     os.makedirs(cache, exist_ok=True)
     if s.model == "SCENE" and exe and tier:
-        spec = _spec_for_scene(context, mat, exe, spec, cache)
+        spec = _spec_for_scene(context, mat, obj, exe, spec, cache)
     return bakery.BakeRequest(spec=spec, quality=s.quality,
                               loom_bake=(prefs.loom_bake_path or None) if prefs else None,
                               cache_dir=cache, ocio_config=colour_config.staged(cache),
@@ -134,32 +133,64 @@ def _poll_loom_material(cls, context) -> bool:
     return True
 
 
-class LOOM_OT_bake_assign(Operator):
-    """Bake the material's fabric with loom-bake (cached) and build the material from the atlas"""
+def _first_user(mat):
+    """An object that uses ``mat`` (its physical scale and scene needs are judged on it)."""
+    for obj in bpy.data.objects:
+        if any(slot.material == mat for slot in obj.material_slots):
+            return obj
+    return None
 
-    bl_idname = "loom.bake_assign"
-    bl_label = "Bake & Assign"
-    bl_options = {"REGISTER", "UNDO"}
 
-    @classmethod
-    def poll(cls, context):
-        return _poll_loom_material(cls, context)
+class _BakeQueue:
+    """Bakes and assigns materials one after the other: to completion in ``execute`` (scripts,
+    ``blender -b``), as a modal job with progress in ``invoke`` (Esc or Cancel stops it). A
+    material whose bake fails is reported and the others go on."""
 
-    # -- blocking (scripts, background)
+    def _targets(self, context) -> list:
+        """[(material, object)] to bake and assign."""
+        raise NotImplementedError
+
+    def _finish(self, done: int, failed: list) -> set:
+        if len(self._names) > 1:
+            level = {"WARNING"} if failed else {"INFO"}
+            self.report(level, f"Loom: {done} of {len(self._names)} materials baked and assigned"
+                               + (f"; failed: {', '.join(failed)}" if failed else ""))
+        return {"FINISHED"} if done else {"CANCELLED"}
+
+    def _start_names(self, context) -> bool:
+        targets = self._targets(context)
+        if not targets:
+            self.report({"WARNING"}, "Loom: no Loom material to bake")
+            return False
+        self._names = [(m.name, o.name if o else "") for m, o in targets]
+        self._k, self._done, self._failed = 0, 0, []
+        return True
+
+    def _objects(self, k):
+        mat_name, obj_name = self._names[k]
+        return bpy.data.materials.get(mat_name), bpy.data.objects.get(obj_name)
+
     def execute(self, context):
-        mat = context.material
-        try:
-            req = _request(context, mat)
-        except bakery.LoomBakeError as exc:
-            self.report({"ERROR"}, str(exc))
+        if not self._start_names(context):
             return {"CANCELLED"}
-        status = bakery.bake_blocking(req)
-        if status.state != "done":
-            self.report({"ERROR"}, f"Loom: {status.message}")
-            return {"CANCELLED"}
-        return _assign_and_report(self, context, mat, context.object, status.atlas_dir)
+        for k, (name, _) in enumerate(self._names):
+            mat, obj = self._objects(k)
+            try:
+                req = _request(context, mat, obj)
+            except bakery.LoomBakeError as exc:
+                self.report({"ERROR"}, f"Loom: {name}: {exc}")
+                self._failed.append(name)
+                continue
+            status = bakery.bake_blocking(req)
+            if status.state != "done":
+                self.report({"ERROR"}, f"Loom: {name}: {status.message}")
+                self._failed.append(name)
+            elif _assign_and_report(self, context, mat, obj, status.atlas_dir) == {"FINISHED"}:
+                self._done += 1
+            else:
+                self._failed.append(name)
+        return self._finish(self._done, self._failed)
 
-    # -- modal (UI)
     def invoke(self, context, event):
         wm = context.window_manager
         if context.window is None:
@@ -167,27 +198,40 @@ class LOOM_OT_bake_assign(Operator):
         if wm.loom_bake_running:
             self.report({"WARNING"}, "Loom: a bake is already running")
             return {"CANCELLED"}
-        mat = context.material
-        try:
-            req = _request(context, mat)
-        except bakery.LoomBakeError as exc:
-            self.report({"ERROR"}, str(exc))
+        if not self._start_names(context):
             return {"CANCELLED"}
-        self._job = bakery.BakeJob(req)
-        status = self._job.start()
-        if status.finished:
-            self.report({"ERROR"}, f"Loom: {status.message}")
-            return {"CANCELLED"}
-        self._mat_name = mat.name
-        self._obj_name = context.object.name if context.object else ""
+        self._job = None
+        if not self._next(context):
+            return self._finish(self._done, self._failed)
         wm.loom_bake_running = True
         wm.loom_bake_cancel = False
         wm.loom_bake_progress = 0.0
-        wm.loom_bake_status = status.message
         wm.progress_begin(0.0, 1.0)
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.modal_handler_add(self)
         return {"RUNNING_MODAL"}
+
+    def _next(self, context) -> bool:
+        """Start the next material's bake; False when none is left."""
+        while self._k < len(self._names):
+            name = self._names[self._k][0]
+            mat, obj = self._objects(self._k)
+            try:
+                if mat is None:
+                    raise bakery.LoomBakeError("the material no longer exists")
+                job = bakery.BakeJob(_request(context, mat, obj))
+                status = job.start()
+                if status.finished:
+                    raise bakery.LoomBakeError(status.message)
+            except bakery.LoomBakeError as exc:
+                self.report({"ERROR"}, f"Loom: {name}: {exc}")
+                self._failed.append(name)
+                self._k += 1
+                continue
+            self._job = job
+            context.window_manager.loom_bake_status = status.message
+            return True
+        return False
 
     def modal(self, context, event):
         wm = context.window_manager
@@ -199,29 +243,40 @@ class LOOM_OT_bake_assign(Operator):
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         status = self._job.poll()
-        wm.loom_bake_progress = status.overall
-        wm.loom_bake_status = status.message
-        wm.progress_update(status.overall)
+        n = len(self._names)
+        overall = (self._k + status.overall) / n
+        prefix = f"{self._names[self._k][0]} ({self._k + 1}/{n}): " if n > 1 else ""
+        wm.loom_bake_progress = overall
+        wm.loom_bake_status = prefix + status.message
+        wm.progress_update(overall)
         if context.workspace is not None:
-            context.workspace.status_text_set(f"Loom: {status.message} (Esc to cancel)")
+            context.workspace.status_text_set(f"Loom: {prefix}{status.message} (Esc to cancel)")
         _redraw_properties(context)
         if not status.finished:
             return {"PASS_THROUGH"}
-        self._cleanup(context)
+        name = self._names[self._k][0]
+        mat, obj = self._objects(self._k)
         if status.state != "done":
-            self.report({"ERROR"}, f"Loom: {status.message}")
-            return {"CANCELLED"}
-        mat = bpy.data.materials.get(self._mat_name)
-        if mat is None:
-            self.report({"WARNING"}, f"Loom: baked {status.atlas_dir}, but material "
-                                     f"{self._mat_name} no longer exists")
-            return {"CANCELLED"}
-        return _assign_and_report(self, context, mat, bpy.data.objects.get(self._obj_name),
-                                  status.atlas_dir)
+            self.report({"ERROR"}, f"Loom: {name}: {status.message}")
+            self._failed.append(name)
+        elif mat is None:
+            self.report({"WARNING"}, f"Loom: baked {status.atlas_dir}, but material {name} no "
+                                     "longer exists")
+            self._failed.append(name)
+        elif _assign_and_report(self, context, mat, obj, status.atlas_dir) == {"FINISHED"}:
+            self._done += 1
+        else:
+            self._failed.append(name)
+        self._k += 1
+        if self._next(context):
+            return {"PASS_THROUGH"}
+        self._cleanup(context)
+        return self._finish(self._done, self._failed)
 
     def cancel(self, context):
         # Blender ends the modal handler (file load, window closed): kill the process too.
-        self._job.cancel()
+        if self._job is not None:
+            self._job.cancel()
         self._cleanup(context)
 
     def _cleanup(self, context):
@@ -235,6 +290,46 @@ class LOOM_OT_bake_assign(Operator):
         if context.workspace is not None:
             context.workspace.status_text_set(None)
         _redraw_properties(context)
+
+
+class LOOM_OT_bake_assign(_BakeQueue, Operator):
+    """Bake the material's fabric with loom-bake (cached) and build the material from the atlas"""
+
+    bl_idname = "loom.bake_assign"
+    bl_label = "Bake & Assign"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_loom_material(cls, context)
+
+    def _targets(self, context):
+        return [(context.material, context.object)]
+
+
+class LOOM_OT_bake_all(_BakeQueue, Operator):
+    """Bake every Loom material of this file with its own settings (cached: an unchanged fabric
+    is not baked again) and rebuild each from its atlas, one after the other"""
+
+    bl_idname = "loom.bake_all"
+    bl_label = "Bake All Loom Materials"
+    bl_options = {"REGISTER", "UNDO"}
+
+    only_missing: BoolProperty(
+        name="Only Missing",
+        description="Only the materials whose atlas is missing or stale (what a render farm's "
+                    "worker lacks), not every one",
+        default=False,
+    )
+
+    def _targets(self, context):
+        mats = [m for m in bpy.data.materials
+                if m.library is None and material.is_loom_material(m) and hasattr(m, "loom")
+                and (m.loom.source == "PRESET" or m.loom.spec_path)]
+        if self.only_missing:
+            mats = [m for m in mats
+                    if not m.loom.atlas_dir or atlas_check.material_problem(m) is not None]
+        return [(m, _first_user(m)) for m in mats]
 
 
 class LOOM_OT_bake_cancel(Operator):
@@ -478,6 +573,6 @@ def menu_import(self, context):
     self.layout.operator(LOOM_OT_import_wif.bl_idname, text="Weaving Draft (.wif) as Loom Cloth")
 
 
-classes = (LOOM_OT_bake_assign, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas, LOOM_OT_material_new,
-           LOOM_OT_scene_needs, LOOM_OT_fibers_update, LOOM_OT_fibers_remove, LOOM_OT_import_wif,
+classes = (LOOM_OT_bake_assign, LOOM_OT_bake_all, LOOM_OT_bake_cancel, LOOM_OT_assign_atlas,
+           LOOM_OT_material_new, LOOM_OT_scene_needs, LOOM_OT_fibers_update, LOOM_OT_fibers_remove, LOOM_OT_import_wif,
            LOOM_FH_wif)

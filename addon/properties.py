@@ -38,7 +38,7 @@ def _update_scale(self, context):
         if not self.atlas_dir:
             return
         try:
-            manifest = bakery.read_manifest(self.atlas_dir)
+            manifest = bakery.read_manifest(bpy.path.abspath(self.atlas_dir))
         except bakery.LoomBakeError:
             return
         scale = material.physical_repeats(context.object, manifest, self.size_factor)

@@ -60,6 +60,7 @@ class MATERIAL_PT_loom(Panel):
         else:
             row.scale_y = 1.3
             row.operator("loom.bake_assign", icon="RENDER_STILL")
+            row.operator("loom.bake_all", text="All", icon="RENDERLAYERS")
             layout.operator("loom.assign_atlas", icon="FILE_FOLDER")
             if wm.loom_bake_status:
                 layout.label(text=wm.loom_bake_status, icon="INFO")

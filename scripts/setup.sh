@@ -8,7 +8,7 @@ PKGS=(
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev libopencolorio-dev
   nlohmann-json3-dev libcli11-dev libtbb-dev libceres-dev libeigen3-dev libcerf-dev libfftw3-dev libnanoflann-dev libembree-dev libspdlog-dev libfmt-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-dev
-  debootstrap util-linux time python3 python3-numpy python3-matplotlib
+  debootstrap util-linux time python3 python3-numpy python3-matplotlib nodejs
 )
 
 missing=()

@@ -4,8 +4,9 @@
 #     UndefinedBehaviorSanitizer, in build-san/, and a bounded run of each libFuzzer target
 #     (label fuzz, $LOOM_FUZZ_SECONDS each, default 30) from build-fuzz/ (scripts/build_san.sh);
 #   - the Blender tests (label blender, headless, in the Blender that scripts/blender.sh finds or
-#     provisions) and the OSL compile check (label osl, skipped with a message when oslc is
-#     absent), from the release build in build/, which builds only what they run.
+#     provisions), the OSL compile check (label osl, skipped with a message when oslc is
+#     absent) and the Flamenco job type's check (label farm, Node.js), from the release build in
+#     build/, which builds only what they run.
 #   bash scripts/test.sh [--full]
 # --full adds the long sweeps (LOOM_FULL=1: the C++ tests' full randomised sweeps, the
 # Blender parity renders at 64 samples instead of 16, the organza's first two diffraction pairs) and
@@ -45,7 +46,7 @@ phase "bounded fuzzing (libFuzzer, ASan + UBSan)"
 ctest --test-dir "$here/build-fuzz" -L fuzz --output-on-failure -j 2 || status=1
 wait "$provision" ||
   echo "scripts/blender.sh info failed (build/blender-provision.log); blender.provision says why"
-phase "Blender and OSL tests"
-ctest --test-dir "$here/build" -L 'blender|osl' --output-on-failure -j 2 || status=1
+phase "Blender, OSL and farm tests"
+ctest --test-dir "$here/build" -L 'blender|osl|farm' --output-on-failure -j 2 || status=1
 phase "done in $((SECONDS - t0)) s"
 exit $status

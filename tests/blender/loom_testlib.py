@@ -133,6 +133,24 @@ def look_along(obj, direction):
     obj.rotation_quaternion = (-d).to_track_quat("Z", "Y")
 
 
+def top_view(scene, ortho_scale: float, height: float = 2.0, sun_direction=None,
+             energy: float = 3.0):
+    """An orthographic camera straight down from ``height`` (the scene's camera) and a sun of
+    ``energy`` shining along ``sun_direction`` (default straight down); returns both."""
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = ortho_scale
+    cam.location = (0.0, 0.0, height)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
+    sun.data.energy = energy
+    if sun_direction is not None:
+        look_along(sun, sun_direction)
+    scene.collection.objects.link(sun)
+    return cam, sun
+
+
 def diffuse_material(name="Diffuse", color=(1.0, 1.0, 1.0)):
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True

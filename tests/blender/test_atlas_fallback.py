@@ -87,15 +87,7 @@ def main():
 
     scene = lt.empty_scene()
     plane = lt.add_plane("Swatch", half=1.0, uv_per_meter=1.0)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.data.type = "ORTHO"
-    cam.data.ortho_scale = 1.0
-    cam.location = (0.0, 0.0, 2.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
-    sun.data.energy = 3.0
-    scene.collection.objects.link(sun)
+    lt.top_view(scene, 1.0)
     mat = loom.api.assign(plane, atlas, mode="nodes", scale=4.0,
                           material=bpy.data.materials.new("Cloth"))
     plane.data.materials.append(mat)

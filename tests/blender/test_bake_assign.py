@@ -78,11 +78,11 @@ class FakeWorkspace:
         self.status.append(text)
 
 
-def drive_modal(obj, mat, esc_after=None, timeout=120.0):
+def drive_modal(obj, mat, esc_after=None, timeout=120.0, op_cls=None):
     """invoke, then TIMER events (and an Esc after ``esc_after`` s) until the operator ends."""
     from types import SimpleNamespace
 
-    op_cls = bpy.types.LOOM_OT_bake_assign
+    op_cls = op_cls or bpy.types.LOOM_OT_bake_assign
     wm, ws = FakeWM(), FakeWorkspace()
     ctx = SimpleNamespace(window=object(), window_manager=wm, workspace=ws, material=mat,
                           object=obj, scene=bpy.context.scene,
@@ -399,6 +399,51 @@ def main():
         if img.name.startswith("Loom "):
             assert img.colorspace_settings.name == "Non-Color", img.name
             assert img.alpha_mode == "CHANNEL_PACKED", img.name
+
+    # 9. Bake All: every Loom material of the file one after the other (the modal path, one
+    #    progress bar over all); a material whose spec is missing is reported by name and the
+    #    others are baked and built all the same.
+    from loom import material as loom_material
+
+    plane2 = lt.add_plane("Cloth 2", half=0.5, location=(2.0, 0.0, 0.0))
+    twill = bpy.data.materials.new("Twill")
+    plane2.data.materials.append(twill)
+    bad = bpy.data.materials.new("Bad")
+    bad.use_fake_user = True
+    for m in (twill, bad):
+        loom_material.mark_managed(m)
+        m.loom.quality, m.loom.mode, m.loom.scale_mode = "draft", "NODES", "REPEATS"
+        m.loom.model = "SPEC"
+    twill.loom.preset = "twill"
+    bad.loom.source, bad.loom.spec_path = "FILE", os.path.join(args.out, "no_such_spec.json")
+    targets = [m.name for m in bpy.data.materials
+               if m.loom.managed and (m.loom.source == "PRESET" or m.loom.spec_path)]
+    for m in bpy.data.materials:  # the earlier sections' materials: the plain draft, reused
+        if m.name in targets and m not in (twill, bad):
+            m.loom.preset, m.loom.quality, m.loom.model, m.loom.source = \
+                "plain", "draft", "SPEC", "PRESET"
+    assert {mat.name, "Twill", "Bad"} <= set(targets), targets
+    res, op, wm = drive_modal(plane, mat, op_cls=bpy.types.LOOM_OT_bake_all, timeout=600.0)
+    assert res == {"FINISHED"}, (res, op.reports)
+    assert twill.loom.atlas_dir and "twill-draft" in os.path.basename(twill.loom.atlas_dir), \
+        twill.loom.atlas_dir
+    assert mat.loom.atlas_dir == atlas, (mat.loom.atlas_dir, atlas)
+    assert any(lvl == {"ERROR"} and "Bad" in msg for lvl, msg in op.reports), op.reports
+    summary = op.reports[-1][1]
+    assert f"{len(targets) - 1} of {len(targets)} materials" in summary and "Bad" in summary, \
+        summary
+    assert wm.progress == sorted(wm.progress) and wm.progress[-1] == 1.0, wm.progress
+    print(f"loom-test: Bake All: {summary}")
+    # Only the missing (a farm worker's bake, farm/flamenco/loom_render.js): all but Bad are
+    # sound now, so Bad alone is tried.
+    from types import SimpleNamespace
+
+    op = FakeOp(bpy.types.LOOM_OT_bake_all)
+    op.only_missing = True
+    ctx = SimpleNamespace(window=None, window_manager=FakeWM(), workspace=None,
+                          scene=bpy.context.scene, preferences=bpy.context.preferences)
+    assert op.execute(ctx) == {"CANCELLED"}, op.reports
+    assert op._names == [("Bad", "")], op._names
 
 
 lt.run(main)
