@@ -34,6 +34,8 @@ class FakeOp:
     def __init__(self, cls):
         self._cls = cls
         self.reports = []
+        for name, prop in getattr(cls, "__annotations__", {}).items():  # the properties' defaults
+            setattr(self, name, getattr(prop, "keywords", {}).get("default"))
 
     def report(self, level, message):
         self.reports.append((set(level), message))

@@ -7,14 +7,16 @@ and render there as before; a packed .blend renders without its atlases.
 Two node-mode materials read one surface atlas, a third a ray-wave atlas (nested groups), and a
 fourth is an OSL Script node's (its atlas property; OSL cannot run here, so it is not rendered).
 After Collect Atlases the atlases sit in //loom/<atlas>/ (the shared one copied once), every
-path points there (relative), the original atlases are deleted and the folder is moved: the
-file opens without fallbacks and renders the same image. Packed (File > External Data > Pack
-Resources) and without its loom/ folder, it renders the same again; only the OSL material,
-which reads files, falls back.
+path points there (relative), the original atlases are deleted and the folder is moved: a fresh
+Blender (this script again, --phase moved) opens the file without fallbacks and renders the same
+image. Packed (File > External Data > Pack Resources) and without its loom/ folder, another
+fresh Blender (--phase packed) renders the same again; only the OSL material, which reads files,
+falls back.
 """
 
 import os
 import shutil
+import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -33,8 +35,7 @@ def same(a, b, what):
     assert all(abs(x - y) <= 1e-4 * max(abs(y), 1e-3) for x, y in zip(a, b)), f"{what}: {a} != {b}"
 
 
-def main():
-    args = lt.parse_args(lambda p: p.add_argument("--raywave", required=True))
+def main(args):
     assert args.atlas, "--atlas is required"
     lt.enable_addon()
     from loom import atlas_check, collect, material, osl_paths
@@ -87,26 +88,53 @@ def main():
     assert not any(d[2] for d in again), again
     bpy.ops.wm.save_mainfile()
 
-    # Moved with its folder, the originals gone: no fallback, the same image.
+    # Moved with its folder, the originals gone: a fresh Blender opens it without fallbacks and
+    # renders the same image; packed there and without the folder, another fresh Blender
+    # renders it the same from the packed maps (the OSL material, which reads files, falls back).
     shutil.rmtree(elsewhere)
     there = os.path.join(work, "there")
     os.rename(here, there)
-    bpy.ops.wm.open_mainfile(filepath=os.path.join(there, "scene.blend"), load_ui=False)
+    blend = os.path.join(there, "scene.blend")
+    for phase in ("moved", "packed"):
+        cmd = [bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1",
+               "--python", os.path.abspath(__file__), "--", "--phase", phase, "--blend", blend,
+               "--expect", ",".join(repr(v) for v in before), "--out", args.out,
+               "--atlas", args.atlas, "--raywave", args.raywave]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        print(res.stdout[-2000:], res.stderr[-2000:])
+        assert res.returncode == 0 and "loom-test collect phase" in res.stdout, \
+            f"the fresh Blender's {phase} check failed ({res.returncode})"
+    print(f"loom-test collect: before {before}, moved and packed the same in fresh Blenders")
+
+
+def fresh(args):
+    """A fresh Blender's part: open the moved file, check, render, compare (and pack)."""
+    lt.enable_addon()
+    from loom import atlas_check
+
+    before = [float(v) for v in args.expect.split(",")]
+    bpy.ops.wm.open_mainfile(filepath=args.blend, load_ui=False)
     problems = atlas_check.check_all()
-    assert problems == {}, problems
-    node = atlas_check.loom_node(bpy.data.materials["OSL"])
-    assert atlas_check.atlas_of(node)[0] == os.path.join(there, "loom", "plain-draft")
-    same(render(args.out, "moved"), before, "moved with its folder")
+    there = os.path.dirname(args.blend)
+    if args.phase == "moved":
+        assert problems == {}, problems
+        node = atlas_check.loom_node(bpy.data.materials["OSL"])
+        assert atlas_check.atlas_of(node)[0] == os.path.join(there, "loom", "plain-draft")
+        same(render(args.out, "moved"), before, "moved with its folder")
+        bpy.ops.file.pack_all()
+        bpy.ops.wm.save_mainfile()
+        shutil.rmtree(os.path.join(there, "loom"))
+    else:
+        assert sorted(problems) == ["OSL"], problems  # OSL reads files: no packed maps for it
+        same(render(args.out, "packed"), before, "packed")
+    print(f"loom-test collect phase {args.phase}: the same image")
 
-    # Packed, without the folder: the node-mode materials render from the packed maps.
-    bpy.ops.file.pack_all()
-    bpy.ops.wm.save_mainfile()
-    shutil.rmtree(os.path.join(there, "loom"))
-    bpy.ops.wm.open_mainfile(filepath=os.path.join(there, "scene.blend"), load_ui=False)
-    problems = atlas_check.check_all()
-    assert sorted(problems) == ["OSL"], problems  # OSL reads files: it cannot use packed maps
-    same(render(args.out, "packed"), before, "packed")
-    print(f"loom-test collect: before {before}, moved and packed the same")
+
+def entry():
+    args = lt.parse_args(lambda p: (p.add_argument("--raywave", required=True),
+                                    p.add_argument("--phase", default=None),
+                                    p.add_argument("--blend"), p.add_argument("--expect")))
+    (fresh if args.phase else main)(args)
 
 
-lt.run(main)
+lt.run(entry)
