@@ -13,6 +13,7 @@
 #include "loom/average_fit.h"
 #include "loom/colour.h"
 #include "loom/ply_maps.h"
+#include "loom/surface_swatch.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -95,6 +96,21 @@ std::string raywave_simulation_key(json canon, const std::string& colour,
   return sha256_string(canon.dump() + colour + baker_id);
 }
 
+namespace {
+
+void write_map(const BakeContext& ctx, const SurfaceMaps& maps, size_t k) {
+  const MapInfo& mi = maps.info[k];
+  ctx.out.write(maps.images[k], mi.name, true, "periodic",
+                {{"channels", mi.channels},
+                 {"range", mi.range},
+                 {"units", mi.units},
+                 {"tiling", "periodic"},
+                 {"period_uv", {1.0, 1.0}},
+                 {"description", mi.description}});
+}
+
+}  // namespace
+
 json bake_surface_stage(const BakeContext& ctx) {
   const bool reuse = ctx.source.has_value();
   SurfaceMaps maps = bake_surface_maps(ctx.spec, ctx.progress_fn, /*horizons=*/!reuse);
@@ -106,13 +122,7 @@ json bake_surface_stage(const BakeContext& ctx) {
       ctx.out.copy(ctx.source->first, ctx.source->second, mi.name);
       continue;
     }
-    ctx.out.write(maps.images[k], mi.name, true, "periodic",
-                  {{"channels", mi.channels},
-                   {"range", mi.range},
-                   {"units", mi.units},
-                   {"tiling", "periodic"},
-                   {"period_uv", {1.0, 1.0}},
-                   {"description", mi.description}});
+    write_map(ctx, maps, k);
     ctx.progress("write", double(k + 1) / (maps.images.size() + 1));
   }
   if (reuse) {
@@ -138,6 +148,42 @@ json bake_surface_stage(const BakeContext& ctx) {
   return {{"warp_yarns", maps.warp_yarns},
           {"weft_yarns", maps.weft_yarns},
           {"size_um", {maps.repeat_um[0], maps.repeat_um[1]}}};
+}
+
+/// The surface tier's swatch reading (surface_swatch.h): the albedo maps rewritten with each
+/// colour's solved albedo; adds the manifest's "swatch" section.
+void bake_surface_swatch_stage(const BakeContext& ctx, json& manifest) {
+  ctx.progress("swatch", 0.0);
+  const Atlas a = ctx.out.load_written(manifest);
+  auto white = [](const std::array<double, 3>&) { return std::array<double, 3>{1, 1, 1}; };
+  const SurfaceSwatchCurve curve =
+      surface_swatch_curve(a, bake_surface_maps(with_colours(ctx.spec, white), {}, false),
+                           surface_swatch_settings(ctx.spec.quality));
+  ctx.progress("swatch", 0.7);
+  json yarns = json::object();
+  auto solve = [&](const std::string& name, const std::array<double, 3>& picked) {
+    const SurfaceSwatchColour c = surface_swatch_albedo(curve, picked);
+    yarns[name] = {{"colour_linear", picked}, {"albedo", c.albedo}, {"swatch_rho", c.rho},
+                   {"swatch_out_of_reach", c.out_of_reach}};
+    return c.albedo;
+  };
+  solve("warp", ctx.spec.warp.color_linear);
+  solve("weft", ctx.spec.weft.color_linear);
+  for (const YarnType& t : ctx.spec.yarn_types) solve("type " + t.name, t.color_linear);
+  const FabricSpec solved = with_colours(ctx.spec, [&](const std::array<double, 3>& c) {
+    return surface_swatch_albedo(curve, c).albedo;
+  });
+  const SurfaceMaps maps = bake_surface_maps(solved, {}, false);
+  for (size_t k = 0; k < maps.images.size(); ++k)
+    if (maps.info[k].name.rfind("albedo_", 0) == 0) write_map(ctx, maps, k);
+  manifest["textures"] = ctx.out.hashed_textures();
+  manifest["swatch"] = {
+      {"definition", "each yarn colour is the swatch of its cloth folded to opacity, d:8, as "
+                     "the closures render it (baker/include/loom/surface_swatch.h)"},
+      {"rho_at_albedo_0", curve.at0.rho},
+      {"rho_at_albedo_1", curve.at1.rho},
+      {"yarns", yarns}};
+  ctx.progress("swatch", 1.0);
 }
 
 /// The repeat-averaged closures (average_fit.h), fitted against the atlas as written so far;
@@ -195,6 +241,8 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     }
     json manifest =
         manifest_of(ctx, bake_key, repeat, out.hashed_textures(), std::move(raywave));
+    if (spec.tier == Tier::Surface && spec.colour_reading == ColourReading::Swatch)
+      bake_surface_swatch_stage(ctx, manifest);
     bake_average_stage(ctx, manifest);
     res.reused = out.publish(manifest, bake_key, opt.force);
   }

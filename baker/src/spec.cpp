@@ -464,11 +464,6 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
                                    : Quality::Preview;
     const auto reading = m.choice("colour_reading", "ply_albedo", {"swatch", "ply_albedo"});
     s.colour_reading = reading == "swatch" ? ColourReading::Swatch : ColourReading::PlyAlbedo;
-    if (s.colour_reading == ColourReading::Swatch && s.tier != Tier::Raywave)
-      errors.push_back(fmt::format(
-          "$.model.colour_reading: \"swatch\" is not yet available on the {} tier (its "
-          "parameters are not yet solved for a swatch colour: issue 35); allowed there: "
-          "\"ply_albedo\"", tier));
     s.optical_thickness = m.number("optical_thickness", s.optical_thickness, 0.01, 100, "");
     s.diffuse_blend = m.number("diffuse_blend", s.diffuse_blend, 0, 1, "");
     s.double_layer_blend = m.number("double_layer_blend", s.double_layer_blend, 0, 1, "");

@@ -60,6 +60,38 @@ TEST(CliConventions, SpecHelpNamesEveryPreset) {
   }
 }
 
+TEST(CliConventions, TheSameFlagForTheSameThingEverywhere) {
+  // -o for every output; a spec positional or as --spec, an atlas positional or as --atlas.
+  const std::string exe = loom::test::bake_exe();
+  for (const char* sub : {"bake", "fibers", "eval truth"}) {
+    std::string out;
+    ASSERT_EQ(loom::test::run(exe + " " + sub + " --help", &out), 0) << sub;
+    EXPECT_NE(out.find("-o,--"), std::string::npos) << sub << " has no -o:\n" << out;
+  }
+  for (const char* sub : {"bake", "check", "fibers"}) {
+    std::string out;
+    ASSERT_EQ(loom::test::run(exe + " " + sub + " --help", &out), 0) << sub;
+    EXPECT_NE(out.find("  spec TEXT"), std::string::npos) << sub << ":\n" << out;
+    EXPECT_NE(out.find("  --spec TEXT"), std::string::npos) << sub << ":\n" << out;
+  }
+  std::string positional, named;
+  ASSERT_EQ(loom::test::run(exe + " check plain", &positional), 0);
+  ASSERT_EQ(loom::test::run(exe + " check --spec plain", &named), 0);
+  EXPECT_EQ(positional, named);
+  const auto atlas = loom::test::draft_atlas("plain", "surface");
+  ASSERT_EQ(loom::test::run(exe + " inspect --json " + atlas.string(), &positional), 0);
+  ASSERT_EQ(loom::test::run(exe + " inspect --json --atlas " + atlas.string(), &named), 0);
+  EXPECT_EQ(positional, named);
+  const auto dir = loom::test::scratch("same_flags") / "fibers";
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(loom::test::run(exe + " fibers plain --region 0,0,300,300 -o " + dir.string() +
+                                " 2>&1",
+                            &named),
+            0)
+      << named;
+  EXPECT_TRUE(std::filesystem::exists(dir / "manifest.json")) << named;
+}
+
 TEST(CliConventions, ThreadsChangeNothingButTheSpeed) {
   const std::string exe = loom::test::bake_exe();
   const std::string cmd = " eval truth --spec plain --wi 0.3,0.1,0.9 --rays 3000 --min-yarns 2";
@@ -198,7 +230,8 @@ TEST(CliConventions, BakesSeveralSpecsOrAFolderEachIntoItsOwnAtlas) {
     if (j.contains("atlas"))
       done.push_back(fs::path(j["atlas"].get<std::string>()).filename().string());
   }
-  EXPECT_EQ(done, (std::vector<std::string>{"point_twill", "red", "plain"})) << res;
+  std::sort(done.begin(), done.end());  // (baked up to --threads at once: in any order)
+  EXPECT_EQ(done, (std::vector<std::string>{"plain", "point_twill", "red"})) << res;
   for (const auto& name : {"point_twill", "red", "plain"})
     EXPECT_TRUE(loom::validate_atlas(out / name).empty()) << name;
   EXPECT_FALSE(fs::exists(out / "notes")) << "a file that is not a spec was baked";

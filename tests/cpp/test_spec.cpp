@@ -35,7 +35,7 @@ TEST(Spec, EmptyObjectTakesDefaults) {
   EXPECT_EQ(r.spec.quality, loom::Quality::Preview);
 }
 
-TEST(Spec, ColourReadingSwatchOnlyWhereItIsSolved) {
+TEST(Spec, ColourReadingSwatchOnBothAtlasTiers) {
   json d = base();
   d["model"]["tier"] = "raywave";
   auto r = parse_spec(d);
@@ -47,9 +47,11 @@ TEST(Spec, ColourReadingSwatchOnlyWhereItIsSolved) {
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r.spec.colour_reading, loom::ColourReading::Swatch);
   EXPECT_EQ(loom::canonical_spec(r.spec)["model"]["colour_reading"], "swatch");
-  d["model"]["tier"] = "surface";
-  // not yet on the surface tier: said so
-  expect_one_error(d, {"$.model.colour_reading", "not yet", "surface", "ply_albedo"});
+  d["model"]["tier"] = "surface";  // solved on the surface tier too (surface_swatch.h)
+  r = parse_spec(d);
+  ASSERT_TRUE(r.ok()) << r.errors.at(0);
+  EXPECT_EQ(r.spec.colour_reading, loom::ColourReading::Swatch);
+
   d["model"]["colour_reading"] = "paint";
   expect_one_error(d, {"$.model.colour_reading", "\"swatch\"", "\"ply_albedo\""});
 }

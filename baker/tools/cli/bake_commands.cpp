@@ -2,13 +2,18 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <tbb/global_control.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <map>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <nlohmann/json.hpp>
 
 #include "command.h"
@@ -81,9 +86,9 @@ void add_bake(CLI::App& app, Commands& out) {
   auto* c = app.add_subcommand(
       "bake", "bake a spec (file or preset name) into an atlas; several, or a folder of them, "
               "each into its own atlas");
-  c->add_option("spec", a->specs,
-                spec_help() + "; several specs, or a folder (its *.json and *.wif), bake one "
-                              "after the other (each on all --threads), each into -o/<name>")
+  c->add_option("spec,--spec", a->specs,
+                spec_help() + "; several specs, or a folder (its *.json and *.wif), bake up to "
+                              "--threads at once, each into -o/<name>")
       ->required();
   c->add_option("-o,--output", a->out_dir,
                 "atlas directory to create (published atomically); with several specs the "
@@ -146,29 +151,42 @@ void add_bake(CLI::App& app, Commands& out) {
     if (batch && fs::exists(a->out_dir) && !fs::is_directory(a->out_dir))
       problems.push_back(fmt::format("-o: {} exists and is not a folder", a->out_dir));
     if (!problems.empty()) return fail(problems, report_spec_errors(what, problems), what);
-    int worst = 0;
-    for (size_t k = 0; k < jobs.size(); ++k) {
+    // A batch bakes up to --threads specs at once (much of a bake runs on one core), each
+    // spreading its own loops over the same threads; output lines are written whole, one at a
+    // time, and carry "spec" (JSON) or the spec's name (-v).
+    const size_t parallel =
+        batch ? std::min(jobs.size(), tbb::global_control::active_value(
+                                          tbb::global_control::max_allowed_parallelism))
+              : 1;
+    std::mutex io;
+    std::atomic<size_t> next{0};
+    int worst = 0;  // (written under io)
+    auto bake_one = [&](size_t k) {
       const auto& [spec, dir] = jobs[k];
+      const std::string tag = batch ? spec : "";
       // -v's stage lines: the stage reporting now and when it began.
       using Clock = std::chrono::steady_clock;
       auto stage_now =
           std::make_shared<std::pair<std::string, Clock::time_point>>("", Clock::now());
-      auto end_stage = [](std::pair<std::string, Clock::time_point>& s) {
+      auto end_stage = [&io, tag](std::pair<std::string, Clock::time_point>& st) {
         const auto now = Clock::now();
-        if (!s.first.empty())
-          std::cerr << fmt::format("loom-bake: {} done ({:.2f} s)\n", s.first,
-                                   std::chrono::duration<double>(now - s.second).count());
-        s.second = now;
+        if (!st.first.empty()) {
+          std::lock_guard lock(io);
+          std::cerr << fmt::format("loom-bake: {}{} done ({:.2f} s)\n",
+                                   tag.empty() ? "" : tag + ": ", st.first,
+                                   std::chrono::duration<double>(now - st.second).count());
+        }
+        st.second = now;
       };
       loom::BakeOptions opt;
       opt.ocio_config = a->ocio;
       opt.force = a->force;
       for (const auto& d : a->reuse) opt.reuse_from.emplace_back(d);
-      const std::string tag = batch ? spec : "";
       if (mode == "json") {
-        opt.progress = [tag](const std::string& stage, double f) {
+        opt.progress = [&io, tag](const std::string& stage, double f) {
           json j{{"stage", stage}, {"fraction", f}};
           if (!tag.empty()) j["spec"] = tag;
+          std::lock_guard lock(io);
           std::cout << j.dump() << std::endl;
         };
       } else if (mode == "lines") {  // -v: each stage once, when the next begins (the last at
@@ -176,25 +194,28 @@ void add_bake(CLI::App& app, Commands& out) {
         opt.progress = [stage_now, end_stage](const std::string& stage, double) {
           if (stage != stage_now->first) end_stage(*stage_now), stage_now->first = stage;
         };
-      } else if (mode == "text") {
+      } else if (mode == "text" && parallel == 1) {  // (several at once: start and end lines)
         opt.progress = [](const std::string& stage, double f) {
           std::cerr << fmt::format("\r{:<12} {:3.0f}%", stage, 100 * f) << std::flush;
           if (f >= 1.0) std::cerr << "\n";
         };
       }
-      if (batch && mode != "none" && mode != "json")
+      if (batch && mode != "none" && mode != "json") {
+        std::lock_guard lock(io);
         std::cerr << fmt::format("loom-bake: {} -> {}\n", spec, dir.string());
+      }
       loom::BakeResult r;
       try {
         r = loom::bake_atlas(parsed[k], dir, opt);
       } catch (const std::exception& e) {
         // (main reports these on stderr: a bad value exits 2, anything else 1)
         const int code = dynamic_cast<const loom::CliValueError*>(&e) ? 2 : 1;
+        std::lock_guard lock(io);
         fail({e.what()}, code, spec);
         if (!batch) throw;
         std::cerr << "error: " << spec << ": " << e.what() << "\n";
-        worst = std::max(worst, code);  // the others still bake
-        continue;
+        worst = std::max(worst, code);
+        return;  // the others still bake
       }
       if (mode == "lines") end_stage(*stage_now);
       json done{{"atlas", r.dir.string()},
@@ -203,7 +224,18 @@ void add_bake(CLI::App& app, Commands& out) {
                 {"seconds", r.seconds},
                 {"bytes", r.bytes}};
       if (batch) done["spec"] = spec;
+      std::lock_guard lock(io);
       std::cout << done.dump() << std::endl;
+    };
+    if (parallel == 1) {
+      for (size_t k = 0; k < jobs.size(); ++k) bake_one(k);
+    } else {
+      std::vector<std::thread> workers;
+      for (size_t w = 0; w < parallel; ++w)
+        workers.emplace_back([&] {
+          for (size_t k; (k = next++) < jobs.size();) bake_one(k);
+        });
+      for (auto& t : workers) t.join();
     }
     return worst;
   }});
@@ -216,7 +248,7 @@ void add_check(CLI::App& app, Commands& out) {
   };
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("check", "validate a spec and print its canonical form");
-  c->add_option("spec", a->spec, spec_help())->required();
+  c->add_option("spec,--spec", a->spec, spec_help())->required();
   c->add_option("--quality", a->quality, "override model.quality");
   c->add_flag("--geometry", a->geometry,
               "print {\"spec\": canonical spec, \"repeat_um\": [x, y], \"warp_yarns\", "

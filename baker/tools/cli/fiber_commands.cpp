@@ -26,10 +26,10 @@ void add_fibers(CLI::App& app, Commands& out) {
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand(
       "fibers", "realize the fibers of a region of the fabric as curves (fiber tier)");
-  c->add_option("--spec", a->spec, spec_help())->required();
+  c->add_option("spec,--spec", a->spec, spec_help())->required();
   c->add_option("--region", a->region, "X0,Y0,X1,Y1 in um of the fabric plane (x along the warp)")
       ->required();
-  c->add_option("--out", a->out, "directory to write (manifest.json and the curves)")
+  c->add_option("-o,--out", a->out, "directory to write (manifest.json and the curves)")
       ->required();
   c->add_option("--max-vertices", a->max, "refuse regions needing more vertices")
       ->check(CLI::Range(uint64_t(2), uint64_t(2000000000)));

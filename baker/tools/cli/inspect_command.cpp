@@ -76,7 +76,7 @@ void add_inspect(CLI::App& app, Commands& out) {
   };
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("inspect", "validate an atlas and print a summary");
-  c->add_option("atlas", a->dir, "atlas directory")->required();
+  c->add_option("atlas,--atlas", a->dir, "atlas directory")->required();
   c->add_flag("--json", a->json, "print the manifest summary as JSON");
   out.push_back({c, [a] { return inspect(a->dir, a->json); }});
 }

@@ -147,7 +147,7 @@ void add_eval_truth(CLI::App& eval, Commands& out) {
   c->add_option("--seed", a->s.seed, "seed of the rays");
   c->add_option("--min-yarns", a->s.min_yarns, "yarns across the tile in each direction, at least")
       ->check(CLI::Range(1, 256));
-  c->add_option("--out", a->out, "write the tally (f |cos theta_o| per sr, RGB) as OpenEXR");
+  c->add_option("-o,--out", a->out, "write the tally (f |cos theta_o| per sr, RGB) as OpenEXR");
   out.push_back({c, [a] { return eval_truth(*a); }});
 }
 
