@@ -56,6 +56,7 @@ Swatch atlas_swatch(const Atlas& a, Evaluator e, const AtlasSwatchSettings& s) {
   struct Parts {
     std::array<double, 3> R{}, T{}, r{}, t{}, Ru{}, Tu{};
     double open = 0;
+    std::vector<std::array<double, 3>> albedo;  // per view
   };
   std::vector<Parts> per(sp.uv.size());
   tbb::parallel_for(size_t(0), sp.uv.size(), [&](size_t k) {
@@ -69,6 +70,10 @@ Swatch atlas_swatch(const Atlas& a, Evaluator e, const AtlasSwatchSettings& s) {
         const auto fo = bsdf.at(u, v, o);
         const double w = std::fabs(o.z) * dv / M_PI;
         const auto from_above = integrate(fo, up, dw), from_below = integrate(fo, down, dw);
+        std::array<double, 3> albedo{};
+        if (p.open < 1)  // (f holds the yarns' part, 1 - open, of the point)
+          for (size_t c = 0; c < 3; ++c) albedo[c] = (from_above[c] + from_below[c]) / (1 - p.open);
+        p.albedo.push_back(albedo);
         for (size_t c = 0; c < 3; ++c) {
           (view_up ? p.r : p.t)[c] += w * from_above[c];
           (view_up ? p.Tu : p.Ru)[c] += w * from_below[c];
@@ -83,8 +88,10 @@ Swatch atlas_swatch(const Atlas& a, Evaluator e, const AtlasSwatchSettings& s) {
     }
     m.open += p.open;
   }
-  const double n = double(per.size());
   Swatch out;
+  for (const Parts& p : per)
+    out.view_albedo.insert(out.view_albedo.end(), p.albedo.begin(), p.albedo.end());
+  const double n = double(per.size());
   for (size_t c = 0; c < 3; ++c) {
     // The gaps' delta: seen through (T), and passing diffuse light both ways (t, T_u).
     const double open = m.open / n;

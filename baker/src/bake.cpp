@@ -182,6 +182,11 @@ void bake_surface_swatch_stage(const BakeContext& ctx, json& manifest) {
                      "the closures render it (baker/include/loom/surface_swatch.h)"},
       {"rho_at_albedo_0", curve.at0.rho},
       {"rho_at_albedo_1", curve.at1.rho},
+      {"albedo_max", curve.albedo_max},
+      {"albedo_max_why",
+       fmt::format("the directional albedo at most {} at every point and view of the swatch's "
+                   "quadrature, and no albedo texel above 1",
+                   kSurfaceSwatchMaxAlbedo)},
       {"yarns", yarns}};
   ctx.progress("swatch", 1.0);
 }

@@ -1,6 +1,8 @@
 // The surface tier's swatch reading of a colour (surface_swatch.h).
 #include "loom/surface_swatch.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -23,7 +25,7 @@ SurfaceSwatchColour surface_swatch_albedo(const SurfaceSwatchCurve& curve,
   SurfaceSwatchColour out;
   for (int ch = 0; ch < 3; ++ch) {
     const size_t k = size_t(ch);
-    double lo = 0, hi = 1;
+    double lo = 0, hi = curve.albedo_max;
     const double target = picked[k];
     if (surface_swatch_rho(curve, ch, hi) <= target) {
       lo = hi;
@@ -45,6 +47,7 @@ SurfaceSwatchColour surface_swatch_albedo(const SurfaceSwatchCurve& curve,
 SurfaceSwatchCurve surface_swatch_curve(const Atlas& a, const SurfaceMaps& white,
                                         const AtlasSwatchSettings& s) {
   Atlas zero = a, one = a;
+  double white_max = 0;  // the largest albedo texel at c = 1
   for (size_t i = 0; i < a.names.size(); ++i) {
     if (a.names[i].rfind("albedo_", 0) != 0) continue;
     size_t w = 0;
@@ -61,10 +64,22 @@ SurfaceSwatchCurve surface_swatch_curve(const Atlas& a, const SurfaceMaps& white
         for (int ch = 0; ch < 3; ++ch) {  // (the fourth channel, the specular share, stays)
           z.px(x, y)[ch] = 0.0f;
           o.px(x, y)[ch] = src.px(x, y)[ch];
+          white_max = std::max(white_max, double(src.px(x, y)[ch]));
         }
   }
-  return {atlas_swatch(zero, Evaluator::Closures, s), atlas_swatch(one, Evaluator::Closures, s),
-          s.card};
+  SurfaceSwatchCurve curve{atlas_swatch(zero, Evaluator::Closures, s),
+                           atlas_swatch(one, Evaluator::Closures, s), s.card};
+  // c_max: the yarns' directional albedo, a0 + c (a1 - a0) at each point and view, at most
+  // kSurfaceSwatchMaxAlbedo (never below c = 1, the ply's own reading); no texel above 1.
+  double energy = INFINITY;
+  const auto& a0 = curve.at0.view_albedo;
+  const auto& a1 = curve.at1.view_albedo;
+  for (size_t k = 0; k < a0.size() && k < a1.size(); ++k)
+    for (size_t ch = 0; ch < 3; ++ch)
+      if (a1[k][ch] > a0[k][ch])
+        energy = std::min(energy, (kSurfaceSwatchMaxAlbedo - a0[k][ch]) / (a1[k][ch] - a0[k][ch]));
+  curve.albedo_max = std::min(white_max > 0 ? 1.0 / white_max : 1.0, std::max(1.0, energy));
+  return curve;
 }
 
 AtlasSwatchSettings surface_swatch_settings(Quality q) {

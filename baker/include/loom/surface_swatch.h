@@ -5,10 +5,15 @@
 // The surface maps are linear in the yarn colour (ply_maps.h: the albedo maps' colour channels;
 // the specular weights carry none), so each part of the swatch (R, T, r, t, R_u, T_u) is affine
 // in it: the swatches of the cloth with every albedo 0 and every albedo 1 give rho(c) per
-// channel in closed form. rho rises with c; a colour is solved by bisection in [0, 1] and, out
-// of that range (brighter than a white yarn's cloth, or darker than its sheen alone), clamped and
-// flagged. As for the fibers, a yarn's colour is the swatch of a cloth of the spec's weave with
-// every yarn of that colour (each system keeps its own specular and transmission shares).
+// channel in closed form. rho rises with c; a colour is solved by bisection in [0, c_max] and,
+// out of that range (brighter than the cloth at c_max, or darker than its sheen alone), clamped
+// and flagged. c may exceed 1: the surface model loses light that the fibers keep (a white plain
+// weave at albedo 1 reflects and transmits 0.60 of the light from 8 degrees, its fibers all of
+// it), and a larger albedo stands in for that light, as far as energy allows: c_max is where the
+// yarns' directional albedo (reflect + transmit), affine in c at each of the swatch's points and
+// views, first reaches kSurfaceSwatchMaxAlbedo (but at least 1), and no albedo texel exceeds 1.
+// As for the fibers, a yarn's colour is the swatch of a cloth of the spec's weave with every
+// yarn of that colour (each system keeps its own specular and transmission shares).
 #pragma once
 #include <array>
 
@@ -24,9 +29,14 @@ namespace loom {
 struct SurfaceSwatchCurve {
   Swatch at0, at1;
   double card = -1;  ///< what lies below: < 0 the pile of the cloth, else a card (atlas_swatch.h)
+  double albedo_max = 1;  ///< c_max (see above)
 };
 
-/// rho of the cloth at albedo c in channel ch (c in [0, 1]).
+/// The most a cloth may reflect and transmit of the light from any one direction when the
+/// swatch reading raises its albedo (a margin below 1 for the views between the sampled ones).
+inline constexpr double kSurfaceSwatchMaxAlbedo = 0.95;
+
+/// rho of the cloth at albedo c in channel ch (c in [0, albedo_max]).
 double surface_swatch_rho(const SurfaceSwatchCurve& curve, int ch, double c);
 
 struct SurfaceSwatchColour {

@@ -45,6 +45,10 @@ struct Swatch {
   std::array<double, 3> up_reflect{}, up_transmit{};      ///< R_u, T_u: diffuse from below
   std::array<double, 3> down_reflect{}, down_transmit{};  ///< r, t: diffuse from above
   std::array<double, 3> below{};  ///< X: R_inf of the pile, or the card
+  /// An atlas's (atlas_swatch.h): at each of its points and views, channel by channel, the
+  /// directional albedo of the yarns there (reflect + transmit over the part of the point that
+  /// is not open gap; 0 where all of it is); empty for the fibers'.
+  std::vector<std::array<double, 3>> view_albedo;
 };
 
 /// The largest absorption the solver tries, per um (a 15 um fiber is then black).
