@@ -63,17 +63,24 @@ def atlas_of(node):
     return atlas, group.get(material.SPEC_PROP)
 
 
-def images_of(tree, seen=None):
-    """Every image a node tree reads, its groups' included."""
+def trees_of(tree, seen=None):
+    """The node tree and every group tree under it, each once."""
     seen = set() if seen is None else seen
     if tree is None or tree.name in seen:
         return
     seen.add(tree.name)
+    yield tree
     for n in tree.nodes:
-        if n.bl_idname == "ShaderNodeTexImage" and n.image is not None:
-            yield n.image
-        elif n.bl_idname == "ShaderNodeGroup":
-            yield from images_of(n.node_tree, seen)
+        if n.bl_idname == "ShaderNodeGroup":
+            yield from trees_of(n.node_tree, seen)
+
+
+def images_of(tree):
+    """Every image a node tree reads, its groups' included."""
+    for t in trees_of(tree):
+        for n in t.nodes:
+            if n.bl_idname == "ShaderNodeTexImage" and n.image is not None:
+                yield n.image
 
 
 def atlas_problem(atlas_dir, spec_sha256) -> str | None:

@@ -11,14 +11,13 @@ left alone. A copy is made in a temporary folder and renamed into place, so an i
 collect leaves no half atlas under the final name.
 """
 
-import json
 import os
 import shutil
 
 import bpy
 from bpy.types import Operator
 
-from . import atlas_check, material, osl_paths
+from . import atlas_check, bakery, material, osl_paths
 
 FOLDER = "loom"
 
@@ -29,20 +28,10 @@ class CollectError(RuntimeError):
 
 def _manifest_key(atlas_dir: str):
     try:
-        with open(os.path.join(atlas_dir, "manifest.json"), encoding="utf-8") as f:
-            m = json.load(f)
-        return m.get("bake_key") or m.get("spec_sha256")
-    except (OSError, ValueError, AttributeError):
+        m = bakery.read_manifest(atlas_dir)
+        return (m.get("bake_key") or m.get("spec_sha256")) if isinstance(m, dict) else None
+    except bakery.LoomBakeError:
         return None
-
-
-def _groups(tree, seen):
-    for n in tree.nodes if tree is not None else ():
-        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
-            if n.node_tree.name not in seen:
-                seen.add(n.node_tree.name)
-                yield n.node_tree
-                yield from _groups(n.node_tree, seen)
 
 
 def atlases_in_use() -> dict:
@@ -84,7 +73,7 @@ def _repoint(mat, src: str, dest: str, rel: str) -> None:
         path = os.path.normpath(bpy.path.abspath(img.filepath))
         if path.startswith(src + os.sep):
             img.filepath = bpy.path.relpath(dest + path[len(src):])
-    for group in _groups(tree, set()):
+    for group in atlas_check.trees_of(tree):
         if group.get("loom_atlas") and os.path.normpath(str(group["loom_atlas"])) == src:
             group["loom_atlas"] = dest
     for node in tree.nodes:

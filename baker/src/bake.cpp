@@ -184,8 +184,8 @@ void bake_surface_swatch_stage(const BakeContext& ctx, json& manifest) {
       {"rho_at_albedo_1", curve.at1.rho},
       {"albedo_max", curve.albedo_max},
       {"albedo_max_why",
-       fmt::format("the directional albedo at most {} at every point and view of the swatch's "
-                   "quadrature, and no albedo texel above 1",
+       fmt::format("the yarns' directional albedo at most {} at every point and view of the "
+                   "swatch's quadrature (but never below 1), and no albedo texel above 1",
                    kSurfaceSwatchMaxAlbedo)},
       {"yarns", yarns}};
   ctx.progress("swatch", 1.0);
