@@ -45,8 +45,8 @@ from .manifest import AVERAGE_TEXTURE, average_gap_mean
 from .manifest import SURFACE_LUT as LUT, SURFACE_MAPS as MAPS, repeat_aspect
 from .node_average import REQUIRED_CONSTANTS as AVERAGE_CONSTANTS, build_average_closures
 from .node_bsdf import ggx_glossy
-from .node_texel_guard import texel_guard_geometry, texel_guard_horizon, texel_guard_optics
-from .node_visibility import horizon_ambient_visibility, horizon_visibility
+from .node_texel_guard import texel_guard_geometry, texel_guard_optics
+from .node_visibility import horizon_ambient_visibility, horizon_vectors, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
                          mix, normalize, select, sqrt, sync_sockets, vec)
 
@@ -122,19 +122,29 @@ def surface_lut_slices(z, K):
     return s0, s1, f
 
 
-def surface_lut_uv(kind, x, y, slice_, panel: float, K):
-    """closure_mapping.h: surface_lut_uv(kind, x, y, slice, panel, lut_u, lut_v).
+def surface_lut_uvs(kind, xs: dict, y, slices: dict, K) -> dict:
+    """closure_mapping.h: surface_lut_uv(kind, x, y, slice, panel, lut_u, lut_v) for each panel
+    (``xs``: panel -> x) and slice (``slices``: name -> slice), as (lut_u, lut_v, 0) vectors.
 
         n = CLOSURE_LUT_SIZE; rows = n SLICES; row0 = slice n; if (kind > 1.5) row0 += rows
         lut_u = (panel n + 0.5 + clamp(x, 0, 1) (n - 1)) / (LUT_PANELS n)
         lut_v = (row0 + 0.5 + clamp(y, 0, 1) (n - 1)) / (2 rows)
-    """
+
+    What the four look-ups share is built once: (lut_u, lut_v) = ((clamp(x), clamp(y)) (n - 1)
+    + (panel n + 0.5, row0 + 0.5)) / (LUT_PANELS n, 2 rows), in Vector Math nodes."""
     n = K["LOOM_CLOSURE_LUT_SIZE"]
     rows = n * K["LOOM_LUT_SLICES"]
-    row0 = slice_ * n + select(kind > 1.5, rows, 0.0)
-    lut_u = (panel * n + 0.5 + clamp(x, 0.0, 1.0) * (n - 1.0)) / (K["LOOM_LUT_PANELS"] * n)
-    lut_v = (row0 + 0.5 + clamp(y, 0.0, 1.0) * (n - 1.0)) / (2.0 * rows)
-    return lut_u, lut_v
+    inv = (1.0 / (K["LOOM_LUT_PANELS"] * n), 1.0 / (2.0 * rows), 0.0)
+    row_base = (kind > 1.5) * rows + 0.5
+    cy = clamp(y, 0.0, 1.0)
+    xy = {panel: vec(clamp(x, 0.0, 1.0), cy, 0.0) * (n - 1.0, n - 1.0, 0.0)
+          for panel, x in xs.items()}
+    uvs = {}
+    for which, slice_ in slices.items():
+        row = slice_ * n + row_base
+        for panel in xs:
+            uvs[panel, which] = (xy[panel] + vec(panel * n + 0.5, row, 0.0)) * inv
+    return uvs
 
 
 def surface_lut_transmission_x(x, back):
@@ -334,8 +344,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.label(np_, "n_p")
         c_refl, a_refl, c_trans, a_trans, blend = texel_guard_optics(
             c_refl, a_refl, c_trans, a_trans, c_par)
-        hor = [texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
-                                                c_h1.x, c_h1.y, c_h1.z, a_h1)]
+        hor = horizon_vectors(c_h0, a_h0, c_h1, a_h1)
 
     with b.block("closure_mapping.h: surface_glossy_normal"):
         Nc = b.label(surface_glossy_normal(t), "N_c")
@@ -353,11 +362,12 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         # the reflection panel at this view; the transmission panel on a back face for the
         # physical slab's tangent (surface_lut_transmission_x)
         lxt = surface_lut_transmission_x(lx, back)
+        by_panel = surface_lut_uvs(c_info[0], {0.0: lx, 1.0: lxt}, ly, {"s0": s0, "s1": s1}, K)
         uvs = {}
-        for what, x_, panel in (("reflection", lx, 0.0), ("transmission", lxt, 1.0)):
-            for s_, which in ((s0, "s0"), (s1, "s1")):
-                lu, lv = surface_lut_uv(c_info[0], x_, ly, s_, panel, K)
-                uvs[what, which] = b.label(vec(lu, lv, 0.0), f"LUT uv ({what}), slice {which}")
+        for what, panel in (("reflection", 0.0), ("transmission", 1.0)):
+            for which in ("s0", "s1"):
+                uvs[what, which] = b.label(by_panel[panel, which],
+                                           f"LUT uv ({what}), slice {which}")
 
     with b.block("Closure LUT (g, ax, ay | h, r1, r2, l), slices mixed (loom_cloth_surface.osl)"):
         def lut_lookup(what):  # two slices, mixed by sf

@@ -104,7 +104,8 @@ LOBE_INPUTS = (
     ("tint", "NodeSocketColor"), ("V", "NodeSocketVector"), ("xp", "NodeSocketVector"),
     ("yp", "NodeSocketVector"), ("t", "NodeSocketVector"), ("T", "NodeSocketVector"),
     ("B", "NodeSocketVector"), ("N", "NodeSocketVector"), ("back", "NodeSocketFloat"),
-    *((f"hor{k}", "NodeSocketFloat") for k in range(8)), ("open", "NodeSocketFloat"),
+    *((n, "NodeSocketVector") for n in node_visibility.HORIZON_SOCKETS),
+    ("open", "NodeSocketFloat"),
     ("vis_v", "NodeSocketFloat"), ("k_f", "NodeSocketColor"),
     ("s", "NodeSocketFloat"), ("theta_i", "NodeSocketFloat"), ("noise_instance", "NodeSocketFloat"),
     ("noise_shift", "NodeSocketFloat"), ("used", "NodeSocketColor"))
@@ -155,7 +156,7 @@ def build_lobe_group(name: str, albedo_image, integral_image, K, noise_image=Non
         gin = b.new("NodeGroupInput")
         i = {n: (b.vector_socket if kind != "NodeSocketFloat" else b.float_socket)(
             gin.outputs[n]) for n, kind in LOBE_INPUTS}
-        hor = [i[f"hor{k}"] for k in range(8)]
+        hor = [i[n] for n in node_visibility.HORIZON_SOCKETS]
         V_, back = i["V"], i["back"]
     with b.block("raywave_lobes.h: raywave_lobe_closures"):
         z, Nr, Tr, axr, ayr, Nt, at, b_refl, b_refr = b.call(
@@ -346,8 +347,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             c_frame, c_normal, c_info, a_info, info_used=(0, 1, 2) if nz else (0,))
         b.label(t, "t")
         b.label(np_, "n_p")
-        hor = [node_texel_guard.texel_guard_horizon(s) for s in (c_h0.x, c_h0.y, c_h0.z, a_h0,
-                                                          c_h1.x, c_h1.y, c_h1.z, a_h1)]
+        hor = node_visibility.horizon_vectors(c_h0, a_h0, c_h1, a_h1)
         xp, yp, theta_i, h = b.call(raywave_ply_space, V_, t, np_)
         b.label(theta_i, "theta_i")
         b.label(h, "h")
@@ -409,7 +409,7 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                 node.hide = False
                 args = {"p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "V": V_, "xp": xp,
                         "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
-                        **{f"hor{k}": hor[k] for k in range(8)}, "open": open_,
+                        **dict(zip(node_visibility.HORIZON_SOCKETS, hor)), "open": open_,
                         "vis_v": vis_v, "k_f": k_f, "s": g["blend"],
                         "theta_i": theta_i, "noise_instance": noise_inst,
                         "noise_shift": noise_shift, "used": used}

@@ -5,7 +5,7 @@ node mode differs, for values no baked atlas holds). Used by the surface and the
 
 from __future__ import annotations
 
-from .nodes_expr import F, V, clamp, cross, dot, fabs, length, normalize, select, vec
+from .nodes_expr import F, V, clamp, cross, dot, fabs, length, normalize, select, vmax, vmin
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
@@ -39,8 +39,9 @@ def texel_guard(x, lo: float, hi: float):
 
 
 def texel_guard_color(c: V, lo: float, hi: float) -> V:
-    """texel_guard.h: texel_guard_color(c, lo, hi, fallback): each channel by texel_guard."""
-    return vec(*(texel_guard(c[i], lo, hi) for i in range(3)))
+    """texel_guard.h: texel_guard_color(c, lo, hi, fallback): each channel by texel_guard, as
+    min(max(c, lo), hi) on the three at once (Vector Math: a NaN channel gives lo, as above)."""
+    return vmin(vmax(c, (lo, lo, lo)), (hi, hi, hi))
 
 
 def texel_guard_unit(v: V) -> V:
@@ -70,9 +71,10 @@ def texel_guard_frame(t: V, n: V):
     return select(keep, tt, fb), nn
 
 
-def texel_guard_horizon(s):
-    """texel_guard.h: texel_guard_horizon(s) = texel_guard(s, -1, 1, 0)."""
-    return texel_guard(s, -1.0, 1.0)
+def texel_guard_horizons(v: V) -> V:
+    """texel_guard.h: texel_guard_horizon(s) = texel_guard(s, -1, 1, 0) on three sines at once
+    (texel_guard_color)."""
+    return texel_guard_color(v, -1.0, 1.0)
 
 
 def texel_guard_geometry(c_frame: V, c_normal: V, c_info: V, gap: F, info_used=(0,)):

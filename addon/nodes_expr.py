@@ -310,7 +310,6 @@ _PY_MATH = {
     "GREATER_THAN": lambda a, b: 1.0 if a > b else 0.0,
     "SQRT": lambda a: math.sqrt(a) if a > 0 else 0.0,
     "ABSOLUTE": abs,
-    "EXPONENT": math.exp,
     "LOGARITHM": lambda a, b: math.log(a) / math.log(b) if a > 0 and b > 0 else 0.0,
     "FLOOR": math.floor,
     "ARCTAN2": math.atan2,
@@ -489,10 +488,6 @@ def sqrt(x):
     return math_op("SQRT", x)
 
 
-def exp(x):
-    return math_op("EXPONENT", x)
-
-
 def log(x):  # (Blender's Logarithm node: 0 for x <= 0)
     return math_op("LOGARITHM", x, math.e)
 
@@ -535,13 +530,18 @@ def min_(a, b_):
     return math_op("MINIMUM", a, b_)
 
 
-def wrap(x, hi, lo):
-    """Math WRAP: x wrapped into [lo, hi) (x - (hi - lo) floor((x - lo) / (hi - lo)))."""
-    b = _builder(x, hi, lo)
-    if b is None:
-        r = hi - lo
-        return x - r * math.floor((x - lo) / r) if r != 0 else lo
-    return math_op("WRAP", x, hi, lo)
+def vabs(v):
+    """Vector Math ABSOLUTE: |v| per component."""
+    return _vec_math("ABSOLUTE", v)
+
+
+def vmax(a, b_):
+    """Vector Math MAXIMUM, per component (a NaN component gives b's: a > b ? a : b)."""
+    return _vec_math("MAXIMUM", a, b_)
+
+
+def vmin(a, b_):
+    return _vec_math("MINIMUM", a, b_)
 
 
 def clamp(x, lo, hi):
