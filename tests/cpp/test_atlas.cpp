@@ -102,8 +102,9 @@ TEST(Atlas, AnAtlasWhoseBakeKeyIsNotAStringIsReplaced) {
   // Found by fuzz_manifest (stop 19): an atlas already at the target whose bake_key was not a
   // string made the bake itself throw nlohmann's type_error, where it must be taken for another
   // spec's atlas and replaced. Both places read it: the check for reuse before the bake and
-  // the one at publishing, when the rename meets the existing directory.
-  for (const json& key : {json(12345), json(nullptr), json::object(), json::array({1, 2})}) {
+  // the one at publishing, when the rename meets the existing directory. (A number and null:
+  // every other non-string type takes the same path; each key costs a draft bake.)
+  for (const json& key : {json(12345), json(nullptr)}) {
     auto d = copy_atlas("bake_key.atlas");
     json m = json::parse(std::ifstream(d / "manifest.json"));
     m["bake_key"] = key;
@@ -384,19 +385,23 @@ TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
   EXPECT_TRUE(loom::validate_atlas(d).empty());
   EXPECT_EQ(temporaries(), 0) << "the dead bake's temporary was not swept";
   // Over the draft atlas: another draft bake (--force: baked afresh, not reused) killed after
-  // the first line of each stage, every line of the writing, and the last progress line before
-  // the result: each a different state of the temporary (a kill after the n-th line re-runs
-  // the bake up to it, so every line would cost O(lines^2) bakes; 6 min under the sanitizers).
+  // the first line of each stage, the first, middle and last line of the writing (none, some
+  // and all of the textures in the temporary), and the last progress line before the result:
+  // each a different state of the temporary (a kill after the n-th line re-runs the bake up to
+  // it, so every line would cost O(lines^2) bakes; 6 min under the sanitizers).
   std::set<int> kill_at;
+  std::vector<int> writes;
   std::string stage_before;
   for (size_t n = 0; n + 1 < printed.size(); ++n) {  // the last line is the result
     const json j = json::parse(printed[n]);
     const std::string stage = j.value("stage", "");
-    if (stage != stage_before || stage == "write" || n + 2 == printed.size())
-      kill_at.insert(int(n) + 1);
+    if (stage != stage_before || n + 2 == printed.size()) kill_at.insert(int(n) + 1);
+    if (stage == "write") writes.push_back(int(n) + 1);
     stage_before = stage;
   }
-  EXPECT_GE(kill_at.size(), 8u) << "a draft bake prints fewer stages than expected";
+  ASSERT_GE(writes.size(), 3u) << "a draft bake writes fewer textures than expected";
+  kill_at.insert({writes[writes.size() / 2], writes.back()});
+  EXPECT_GE(kill_at.size(), 7u) << "a draft bake prints fewer stages than expected";
   int killed = 0;
   for (int n : kill_at) {
     const int k = bake("draft", n);
