@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "asg_fit_grid.h"
 #include "loom/shading.h"
 
 namespace loom {
@@ -16,63 +17,6 @@ namespace {
 
 namespace sh = shading;
 constexpr int kQ = 6;  // parameters per lobe
-
-/// The outgoing directions the fit uses (the simulation's bins, pooled when fine), with their
-/// solid angles, and the data of every slice and level on them.
-struct FitGrid {
-  int rows = 0, cols = 0;
-  std::vector<sh::vec3> dir;
-  std::vector<double> weight;  // solid angle
-  // values[(slice * K + k) * bins + b]
-  std::vector<double> values;
-  int K = 1;
-  size_t bins() const { return dir.size(); }
-  const double* slice(size_t s, int k) const { return &values[(s * size_t(K) + size_t(k)) * bins()]; }
-};
-
-FitGrid make_grid(const PlySimResult& sim, bool refl) {
-  const PlySimSettings& st = sim.settings;
-  const int pool = st.theta_o_count > 32 ? 2 : 1;
-  FitGrid g;
-  g.rows = st.theta_o_count / pool;
-  g.cols = st.phi_o_count / pool;
-  g.K = refl ? 1 : int(st.sigmas.size());
-  for (int r = 0; r < g.rows; ++r)
-    for (int c = 0; c < g.cols; ++c) {
-      double w = 0;
-      Vec3d d{0, 0, 0};
-      for (int a = 0; a < pool; ++a)
-        for (int b = 0; b < pool; ++b) {
-          int t = r * pool + a, p = c * pool + b;
-          double om = ply_sim_bin_solid_angle(st, t);
-          Vec3d v = ply_sim_bin_direction(st, t, p);
-          w += om;
-          d = {d.x + om * v.x, d.y + om * v.y, d.z + om * v.z};
-        }
-      g.dir.push_back(sh::normalize(sh::vec3(float(d.x), float(d.y), float(d.z))));
-      g.weight.push_back(w);
-    }
-  const size_t fine = size_t(st.theta_o_count) * size_t(st.phi_o_count);
-  g.values.assign(sim.slices.size() * size_t(g.K) * g.bins(), 0.0);
-  for (size_t s = 0; s < sim.slices.size(); ++s)
-    for (int k = 0; k < g.K; ++k) {
-      const float* src = refl ? sim.slices[s].refl.data() : &sim.slices[s].high[size_t(k) * fine];
-      double* dst = &g.values[(s * size_t(g.K) + size_t(k)) * g.bins()];
-      for (int r = 0; r < g.rows; ++r)
-        for (int c = 0; c < g.cols; ++c) {
-          double sum = 0, w = 0;
-          for (int a = 0; a < pool; ++a)
-            for (int b = 0; b < pool; ++b) {
-              int t = r * pool + a, p = c * pool + b;
-              double om = ply_sim_bin_solid_angle(st, t);
-              sum += om * src[size_t(t) * size_t(st.phi_o_count) + size_t(p)];
-              w += om;
-            }
-          dst[size_t(r) * size_t(g.cols) + size_t(c)] = sum / w;
-        }
-    }
-  return g;
-}
 
 AsgLobe lobe_from(const double* q) { return {q[0], q[1], q[2], q[3], q[4], q[5]}; }
 
@@ -278,31 +222,27 @@ void match_lobes(const double* a, double* b, int L, int Lb) {
   std::copy(out.begin(), out.end(), b);
 }
 
-/// Bilinear corner weights of slice (a, b) in a block, a, b in {0, 1, 2} (S.5).
-std::array<double, 4> corner_weights(double r, double s) {
-  return {(1 - r) * (1 - s), (1 - r) * s, r * (1 - s), r * s};
-}
+/// The sizes of a fit: M x N slices (theta_i, h), L lobes (Lb of them backward), Mb x Nb blocks,
+/// rows x cols corner nodes, K absorption levels.
+struct FitShape {
+  int M = 0, N = 0, L = 0, Lb = 0, Mb = 0, Nb = 0, rows = 0, cols = 0, K = 1;
+  size_t slice(int m, int n) const { return size_t(m) * size_t(N) + size_t(n); }
+};
 
-AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl) {
-  const int M = int(sim.theta_i.size()), N = int(sim.h.size()), L = settings.lobes;
-  if (M < 3 || N < 3 || M % 2 == 0 || N % 2 == 0)
-    throw std::invalid_argument("asg_fit: the theta_i and h sample counts must be odd and >= 3");
-  if (L < 1) throw std::invalid_argument("asg_fit: at least one lobe");
-  const FitGrid g = make_grid(sim, refl);
-  // No lobe narrower than the grid it is fitted on (asg_resolvable_mu).
-  AsgFitSettings s = settings;
-  s.mu_max = std::min(s.mu_max, asg_resolvable_mu(g.rows, g.cols));
-  const int Lb = back_lobes(L, s.split_sides);
-  const int Mb = (M - 1) / 2, Nb = (N - 1) / 2, rows = Mb + 1, cols = Nb + 1, K = g.K;
-  double data_max = 0;
-  for (size_t sl = 0; sl < sim.slices.size(); ++sl)
-    for (size_t b = 0; b < g.bins(); ++b) data_max = std::max(data_max, g.slice(sl, 0)[b]);
-  const double c_max = std::max(10 * data_max, 1e-6);
+/// A slice's four corner nodes and their weights (S.5).
+struct SliceNodes {
+  int node[4];
+  double w[4];
+};
 
+/// The corner nodes' lobes, block by block in raster order (asg_fit.h: shared corners).
+std::vector<double> fit_corners(const FitGrid& g, const FitShape& z, const AsgFitSettings& s,
+                                double c_max) {
+  const int L = z.L, Lb = z.Lb, Mb = z.Mb, Nb = z.Nb, rows = z.rows, cols = z.cols;
+  auto slice_index = [&](int m, int n) { return z.slice(m, n); };
   std::vector<double> nodes(size_t(rows * cols * kQ * L), 0.0);
   std::vector<char> fitted(size_t(rows * cols), 0);
   auto node = [&](int i, int j) { return &nodes[size_t((i * cols + j) * kQ * L)]; };
-  auto slice_index = [&](int m, int n) { return size_t(m) * size_t(N) + size_t(n); };
   const auto opts = solver_options(s);
 
   // The first corner: greedy start and a single-slice fit; every other corner starts from it.
@@ -345,7 +285,7 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
         for (size_t f = 0; f < free_corners.size(); ++f) ptr[size_t(free_corners[f])] = q[f].data();
         for (int a = 0; a < 3; ++a)
           for (int b = 0; b < 3; ++b) {
-            auto w = corner_weights(a / 2.0, b / 2.0);
+            auto w = asg_corner_weights(a / 2.0, b / 2.0);
             std::vector<double> wv;
             std::vector<double*> pv;
             for (int c = 0; c < 4; ++c)
@@ -391,19 +331,21 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
       }
       for (auto& c : ci) fitted[size_t(c[0] * cols + c[1])] = 1;
     }
+  return nodes;
+}
 
+/// Each slice's corners (S.5).
+std::vector<SliceNodes> slice_corners(const FitShape& z) {
+  const int M = z.M, N = z.N, Mb = z.Mb, Nb = z.Nb, cols = z.cols;
+  auto slice_index = [&](int m, int n) { return z.slice(m, n); };
   // Each slice's corner nodes and S.5's weights (a slice on a block border belongs to both
   // blocks and has the same lobes in each: the corners are shared).
-  const size_t S = size_t(M) * size_t(N), B = g.bins();
-  struct SliceNodes {
-    int node[4];
-    double w[4];
-  };
+  const size_t S = size_t(M) * size_t(N);
   std::vector<SliceNodes> at(S);
   for (int m = 0; m < M; ++m)
     for (int n = 0; n < N; ++n) {
       const int bm = std::min(m / 2, Mb - 1), bn = std::min(n / 2, Nb - 1);
-      const auto w = corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
+      const auto w = asg_corner_weights((m - 2 * bm) / 2.0, (n - 2 * bn) / 2.0);
       const int cn[4][2] = {{bm, bn}, {bm, bn + 1}, {bm + 1, bn}, {bm + 1, bn + 1}};
       SliceNodes& sn = at[slice_index(m, n)];
       for (int c = 0; c < 4; ++c) {
@@ -411,7 +353,14 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
         sn.w[c] = w[size_t(c)];
       }
     }
+  return at;
+}
 
+/// Scales the corners' amplitudes c so that no slice's lobes hold more than its data.
+void cap_lobe_energy(const FitGrid& g, const FitShape& z, const std::vector<SliceNodes>& at,
+                     std::vector<double>& nodes) {
+  const size_t S = size_t(z.M) * size_t(z.N), B = g.bins();
+  const int L = z.L;
   // Energy cap: no slice's lobes hold more than the slice's data at sigma = 0 (asg_fit.h).
   {
     auto lobe_energy = [&](size_t sl) {  // sum_l asg_integral of S.7's interpolated lobes
@@ -447,13 +396,14 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
     }
   }
 
-  AsgTable t;
-  t.lobes = L;
-  t.theta_i = sim.theta_i;
-  t.h = sim.h;
-  t.sigmas = refl ? std::vector<double>{0.0} : sim.settings.sigmas;
-  for (int i = 0; i < rows * cols * L; ++i) t.nodes.push_back(lobe_from(&nodes[size_t(i * kQ)]));
+}
 
+/// G_l of S.9 on every bin of every slice: G[(slice * bins + bin) * L + l].
+std::vector<double> lobe_values(const FitGrid& g, const FitShape& z,
+                                const std::vector<SliceNodes>& at, const std::vector<double>& nodes) {
+  const size_t S = size_t(z.M) * size_t(z.N), B = g.bins();
+  const int M = z.M, N = z.N, L = z.L;
+  auto slice_index = [&](int m, int n) { return z.slice(m, n); };
   // Lobe values G_l on every bin of every slice.
   std::vector<double> G(S * B * size_t(L));
   for (int m = 0; m < M; ++m)
@@ -472,6 +422,14 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
                            float(ql[5]), g.dir[bin]);
         }
     }
+  return G;
+}
+
+/// The scale-downs s_{l,k} of the absorption levels k >= 1 (S.9), into t.scale.
+void fit_scale_downs(const FitGrid& g, const FitShape& z, const std::vector<SliceNodes>& at,
+                     const std::vector<double>& G, AsgTable& t) {
+  const size_t S = size_t(z.M) * size_t(z.N), B = g.bins();
+  const int L = z.L, rows = z.rows, cols = z.cols, K = z.K;
   // Scale-downs (S.9) at the corner nodes, interpolated like the lobes (S.7's weights).
   const int U = rows * cols * L;  // unknowns of one level: node-major, then lobe
   t.scale.assign(size_t(U * K), 1.0);
@@ -532,6 +490,15 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
       }
     }
   }
+}
+
+/// t's fit errors: per block (f_0) and per level.
+void fit_errors(const FitGrid& g, const FitShape& z, const std::vector<SliceNodes>& at,
+                const std::vector<double>& G, AsgTable& t) {
+  const int U = z.rows * z.cols * z.L;  // unknowns of one level
+  const size_t S = size_t(z.M) * size_t(z.N), B = g.bins();
+  const int L = z.L, Mb = z.Mb, Nb = z.Nb, K = z.K;
+  auto slice_index = [&](int m, int n) { return z.slice(m, n); };
   // Fit errors: per block over its nine slices (f_0), and per level over all slices.
   auto scale_at = [&](size_t sl, int k, int l) {
     double v = 0;
@@ -561,6 +528,38 @@ AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl)
   for (int k = 0; k < K; ++k)
     t.nrmse_per_sigma.push_back(norm_k[size_t(k)] > 0 ? std::sqrt(err_k[size_t(k)] / norm_k[size_t(k)]) : 0.0);
   t.nrmse = t.nrmse_per_sigma[0];
+}
+
+AsgTable fit(const PlySimResult& sim, const AsgFitSettings& settings, bool refl) {
+  const int M = int(sim.theta_i.size()), N = int(sim.h.size()), L = settings.lobes;
+  if (M < 3 || N < 3 || M % 2 == 0 || N % 2 == 0)
+    throw std::invalid_argument("asg_fit: the theta_i and h sample counts must be odd and >= 3");
+  if (L < 1) throw std::invalid_argument("asg_fit: at least one lobe");
+  const FitGrid g = make_grid(sim, refl);
+  // No lobe narrower than the grid it is fitted on (asg_resolvable_mu).
+  AsgFitSettings s = settings;
+  s.mu_max = std::min(s.mu_max, asg_resolvable_mu(g.rows, g.cols));
+  FitShape z;
+  z.M = M, z.N = N, z.L = L, z.Lb = back_lobes(L, s.split_sides);
+  z.Mb = (M - 1) / 2, z.Nb = (N - 1) / 2, z.rows = z.Mb + 1, z.cols = z.Nb + 1, z.K = g.K;
+  double data_max = 0;
+  for (size_t sl = 0; sl < sim.slices.size(); ++sl)
+    for (size_t b = 0; b < g.bins(); ++b) data_max = std::max(data_max, g.slice(sl, 0)[b]);
+  const double c_max = std::max(10 * data_max, 1e-6);
+
+  std::vector<double> nodes = fit_corners(g, z, s, c_max);
+  const std::vector<SliceNodes> at = slice_corners(z);
+  cap_lobe_energy(g, z, at, nodes);
+  AsgTable t;
+  t.lobes = L;
+  t.theta_i = sim.theta_i;
+  t.h = sim.h;
+  t.sigmas = refl ? std::vector<double>{0.0} : sim.settings.sigmas;
+  for (int i = 0; i < z.rows * z.cols * L; ++i) t.nodes.push_back(lobe_from(&nodes[size_t(i * kQ)]));
+
+  const std::vector<double> G = lobe_values(g, z, at, nodes);
+  fit_scale_downs(g, z, at, G, t);
+  fit_errors(g, z, at, G, t);
   return t;
 }
 
@@ -584,67 +583,5 @@ double asg_resolvable_mu(int rows, int cols) {
 
 AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, false); }
 AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s) { return fit(sim, s, true); }
-
-std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma) {
-  const int L = t.lobes;
-  auto locate = [](const std::vector<double>& grid, double x, int& block, double& frac) {
-    const int n = int(grid.size());
-    double u = (std::clamp(x, grid.front(), grid.back()) - grid.front()) /
-               (grid.back() - grid.front()) * (n - 1);
-    if (!std::isfinite(u)) u = 0;
-    block = std::clamp(int(std::floor(u / 2)), 0, (n - 1) / 2 - 1);
-    frac = std::clamp((u - 2 * block) / 2, 0.0, 1.0);  // S.6
-  };
-  int bm, bn;
-  double r, s;
-  locate(t.theta_i, theta_i, bm, r);
-  locate(t.h, h, bn, s);
-  // S.10: the absorption interval.
-  const int K = int(t.sigmas.size());
-  int k = 0;
-  double tt = 0;
-  sigma_interval(t.sigmas, sigma, t.absorption, k, tt);
-  const int cols = t.node_cols(), U = t.node_rows() * cols * L;
-  const int corner[4] = {bm * cols + bn, bm * cols + bn + 1, (bm + 1) * cols + bn,
-                         (bm + 1) * cols + bn + 1};
-  auto w = corner_weights(r, s);
-  std::vector<AsgLobe> out(static_cast<size_t>(L));
-  for (int l = 0; l < L; ++l) {
-    const AsgLobe* c[4] = {&t.node(bm, bn, l), &t.node(bm, bn + 1, l), &t.node(bm + 1, bn, l),
-                           &t.node(bm + 1, bn + 1, l)};
-    AsgLobe q{0, 0, 0, 0, 0, 0};
-    for (int i = 0; i < 4; ++i) {  // S.7
-      q.theta_z += w[size_t(i)] * c[i]->theta_z;
-      q.phi_z += w[size_t(i)] * c[i]->phi_z;
-      q.phi_xy += w[size_t(i)] * c[i]->phi_xy;
-      q.mu1 += w[size_t(i)] * c[i]->mu1;
-      q.mu2 += w[size_t(i)] * c[i]->mu2;
-      q.c += w[size_t(i)] * c[i]->c;
-    }
-    double scale = 1;
-    if (K > 1) {  // S.11 at the corners, then S.7's weights
-      scale = 0;
-      for (int i = 0; i < 4; ++i)
-        scale += w[size_t(i)] * ((1 - tt) * t.scale[size_t(k * U + corner[i] * L + l)] +
-                                 tt * t.scale[size_t((k + 1) * U + corner[i] * L + l)]);
-    }
-    q.c *= scale;
-    out[size_t(l)] = q;
-  }
-  return out;
-}
-
-double asg_mixture_eval(const std::vector<AsgLobe>& lobes, const Vec3d& wo) {
-  sh::vec3 v(float(wo.x), float(wo.y), float(wo.z));
-  double s = 0;
-  for (const AsgLobe& q : lobes)
-    s += sh::asg_eval(float(q.theta_z), float(q.phi_z), float(q.phi_xy), float(q.mu1),
-                      float(q.mu2), float(q.c), v);
-  return s;
-}
-
-double asg_table_eval(const AsgTable& t, double theta_i, double h, double sigma, const Vec3d& wo) {
-  return asg_mixture_eval(asg_table_lobes(t, theta_i, h, sigma), wo);  // S.8, S.12
-}
 
 }  // namespace loom

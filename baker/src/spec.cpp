@@ -386,6 +386,63 @@ void read_sequence(const json& j, const std::string& path, const std::vector<Yar
     errors.push_back(fmt::format("{}: more than {} threads; {}", path, kMaxRepeatYarns, want));
 }
 
+/// The checks that read several fields: the tier against the sequences, the repeat and the
+/// map size it needs, each yarn's diameter against its spacing. Sets the weave's tiling.
+void check_across_fields(FabricSpec& s, std::vector<std::string>& errors) {
+  if (s.tier == Tier::Fiber)
+    errors.push_back(fmt::format(
+        "$.model.tier: \"{}\" is not available yet as an atlas tier; allowed: \"surface\", "
+        "\"raywave\". Fibers go over either where the camera resolves them: the Blender "
+        "add-on's Fibers from Camera, or loom-bake fibers --region",
+        to_string(s.tier)));
+  // The repeat holds whole yarn sequences: the weave's repeat tiled to their lengths.
+  s.weave.tile_rows = std::max(sequence_length(s.warp_sequence), 1);
+  s.weave.tile_cols = std::max(sequence_length(s.weft_sequence), 1);
+  if (has_thread_sequences(s) && s.tier == Tier::Raywave)
+    errors.push_back("$.model.tier: \"raywave\" does not yet take per-thread yarn sequences "
+                     "(issue 33: its tables are per system); allowed with a sequence: "
+                     "\"surface\"");
+  // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
+  int rows = 2, cols = 2;
+  const auto& w = s.weave;
+  if (w.pattern == "twill") rows = cols = w.up + w.down;
+  if (w.pattern == "satin") rows = cols = w.harness;
+  if (w.pattern == "basket") rows = cols = 2 * w.group;
+  if (w.pattern == "custom" && !w.matrix.empty()) {
+    rows = static_cast<int>(w.matrix.size());
+    cols = static_cast<int>(w.matrix[0].size());
+  }
+  for (auto [n, tile, what] : {std::tuple{&rows, w.tile_rows, "warp"},
+                               std::tuple{&cols, w.tile_cols, "weft"}}) {
+    const long long l = std::lcm(static_cast<long long>(*n), static_cast<long long>(tile));
+    if (l > kMaxRepeatYarns)
+      errors.push_back(fmt::format("$.{}.sequence: the repeat grows to {} {} yarns (the least "
+                                   "common multiple of the weave's {} and the sequence's {}), "
+                                   "more than {}",
+                                   what, l, what, *n, tile, kMaxRepeatYarns));
+    *n = int(std::min<long long>(l, kMaxRepeatYarns));
+  }
+  long long side = static_cast<long long>(std::max(rows, cols)) * texels_per_cell(s.quality);
+  if (side > kMaxMapSide)
+    errors.push_back(fmt::format(
+        "$.model.quality: \"{}\" needs {} x {} texels for a {} x {} weave repeat, more than the "
+        "{} per side that fit in memory; choose a lower quality or a smaller repeat",
+        to_string(s.quality), cols * texels_per_cell(s.quality), rows * texels_per_cell(s.quality),
+        rows, cols, kMaxMapSide));
+  // Warp yarns lie side by side at the warp density (1e4 / warp_per_cm um apart), weft yarns at
+  // the weft density.
+  for (auto [name, y, per_cm] : {std::tuple{"warp", &s.warp, s.warp_per_cm},
+                                 std::tuple{"weft", &s.weft, s.weft_per_cm}}) {
+    // A yarn wider than 3x its spacing cannot lie flat next to its neighbours.
+    double spacing = 1e4 / per_cm;
+    if (y->yarn_diameter_um > 3.0 * spacing)
+      errors.push_back(fmt::format(
+          "$.{}.yarn_diameter_um: {} um does not fit at {} yarns/cm (spacing {:.1f} um); allowed "
+          "range [10, {:.1f}] um at this density",
+          name, y->yarn_diameter_um, per_cm, spacing, 3.0 * spacing));
+  }
+}
+
 }  // namespace
 
 SpecResult parse_spec(const json& doc, const std::string& quality_override) {
@@ -497,59 +554,7 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
   }
   r.reject_unknown();
 
-  // Cross-field checks.
-  if (s.tier == Tier::Fiber)
-    errors.push_back(fmt::format(
-        "$.model.tier: \"{}\" is not available yet as an atlas tier; allowed: \"surface\", "
-        "\"raywave\". Fibers go over either where the camera resolves them: the Blender "
-        "add-on's Fibers from Camera, or loom-bake fibers --region",
-        to_string(s.tier)));
-  // The repeat holds whole yarn sequences: the weave's repeat tiled to their lengths.
-  s.weave.tile_rows = std::max(sequence_length(s.warp_sequence), 1);
-  s.weave.tile_cols = std::max(sequence_length(s.weft_sequence), 1);
-  if (has_thread_sequences(s) && s.tier == Tier::Raywave)
-    errors.push_back("$.model.tier: \"raywave\" does not yet take per-thread yarn sequences "
-                     "(issue 33: its tables are per system); allowed with a sequence: "
-                     "\"surface\"");
-  // Resolution: rows = warp yarns in the repeat, cols = weft yarns.
-  int rows = 2, cols = 2;
-  const auto& w = s.weave;
-  if (w.pattern == "twill") rows = cols = w.up + w.down;
-  if (w.pattern == "satin") rows = cols = w.harness;
-  if (w.pattern == "basket") rows = cols = 2 * w.group;
-  if (w.pattern == "custom" && !w.matrix.empty()) {
-    rows = static_cast<int>(w.matrix.size());
-    cols = static_cast<int>(w.matrix[0].size());
-  }
-  for (auto [n, tile, what] : {std::tuple{&rows, w.tile_rows, "warp"},
-                               std::tuple{&cols, w.tile_cols, "weft"}}) {
-    const long long l = std::lcm(static_cast<long long>(*n), static_cast<long long>(tile));
-    if (l > kMaxRepeatYarns)
-      errors.push_back(fmt::format("$.{}.sequence: the repeat grows to {} {} yarns (the least "
-                                   "common multiple of the weave's {} and the sequence's {}), "
-                                   "more than {}",
-                                   what, l, what, *n, tile, kMaxRepeatYarns));
-    *n = int(std::min<long long>(l, kMaxRepeatYarns));
-  }
-  long long side = static_cast<long long>(std::max(rows, cols)) * texels_per_cell(s.quality);
-  if (side > kMaxMapSide)
-    errors.push_back(fmt::format(
-        "$.model.quality: \"{}\" needs {} x {} texels for a {} x {} weave repeat, more than the "
-        "{} per side that fit in memory; choose a lower quality or a smaller repeat",
-        to_string(s.quality), cols * texels_per_cell(s.quality), rows * texels_per_cell(s.quality),
-        rows, cols, kMaxMapSide));
-  // Warp yarns lie side by side at the warp density (1e4 / warp_per_cm um apart), weft yarns at
-  // the weft density.
-  for (auto [name, y, per_cm] : {std::tuple{"warp", &s.warp, s.warp_per_cm},
-                                 std::tuple{"weft", &s.weft, s.weft_per_cm}}) {
-    // A yarn wider than 3x its spacing cannot lie flat next to its neighbours.
-    double spacing = 1e4 / per_cm;
-    if (y->yarn_diameter_um > 3.0 * spacing)
-      errors.push_back(fmt::format(
-          "$.{}.yarn_diameter_um: {} um does not fit at {} yarns/cm (spacing {:.1f} um); allowed "
-          "range [10, {:.1f}] um at this density",
-          name, y->yarn_diameter_um, per_cm, spacing, 3.0 * spacing));
-  }
+  check_across_fields(s, errors);
   return res;
 }
 

@@ -47,6 +47,7 @@
 //    residual. Between the slices the interpolated lobes are not bounded this way.
 //  * f_refl: the same block scheme with its own (small) lobe count and no absorption levels.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -130,6 +131,9 @@ AsgTable asg_fit_high(const PlySimResult& sim, const AsgFitSettings& s);
 /// Fit f_refl of a simulation (one level, no scale-downs).
 AsgTable asg_fit_refl(const PlySimResult& sim, const AsgFitSettings& s);
 
+/// Bilinear weights of the corners (0,0), (0,1), (1,0), (1,1) of a block at fractions (r, s)
+/// (S.5).
+std::array<double, 4> asg_corner_weights(double r, double s);
 /// The lobes at (theta_i, h, sigma) by S.6, S.7, S.10, S.11 (scale folded into c); queries
 /// outside the grids are clamped to it.
 std::vector<AsgLobe> asg_table_lobes(const AsgTable& t, double theta_i, double h, double sigma);
