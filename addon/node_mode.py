@@ -255,6 +255,84 @@ def group_name(manifest: dict) -> str:
     return f"{GROUP_PREFIX} ({manifest.get('spec', {}).get('name', 'atlas')})"
 
 
+def _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info, back, K):
+    """The closure LUT's two panels at this view, each mixed between the two slices around the
+    tangent's elevation: (refl (g, ax, ay), trans (h, r1, r2), trans l)."""
+    with b.block("closure_mapping.h: surface_lut_coords, surface_lut_slices, surface_lut_uv"):
+        lx, ly, lz = surface_lut_coords(V_, t, K)
+        s0, s1, sf = surface_lut_slices(lz, K)
+        # the reflection panel at this view; the transmission panel on a back face for the
+        # physical slab's tangent (surface_lut_transmission_x)
+        lxt = surface_lut_transmission_x(lx, back)
+        by_panel = surface_lut_uvs(c_info[0], {0.0: lx, 1.0: lxt}, ly, {"s0": s0, "s1": s1}, K)
+        uvs = {}
+        for what, panel in (("reflection", 0.0), ("transmission", 1.0)):
+            for which in ("s0", "s1"):
+                uvs[what, which] = b.label(by_panel[panel, which],
+                                           f"LUT uv ({what}), slice {which}")
+
+    with b.block("Closure LUT (g, ax, ay | h, r1, r2, l), slices mixed (loom_cloth_surface.osl)"):
+        def lut_lookup(what):  # two slices, mixed by sf
+            looks = []
+            for which in ("s0", "s1"):
+                node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
+                             label=f"{LUT} ({what}, {which})")
+                node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
+                b.link(uvs[what, which], node.inputs["Vector"])
+                looks.append((b.vector_socket(node.outputs["Color"]),
+                              b.float_socket(node.outputs["Alpha"])))
+            return mix(looks[0][0], looks[1][0], sf), mix(looks[0][1], looks[1][1], sf)
+
+        refl, _ = lut_lookup("reflection")
+        trans, trans_a = lut_lookup("transmission")
+        b.label(refl, "refl (g, ax, ay)")
+        b.label(trans, "trans (h, r1, r2)")
+        b.label(trans_a, "trans l")
+    return refl, trans, trans_a
+
+
+def _surface_closures(b, frame, np_, Nc, t, back, refl, trans, weights):
+    """The closures of closure_mapping.h's table with their weights, normals and tangents in
+    world space (frame: T, B, N): (the transparent closure, the sum of the yarns' closures)."""
+    T, B, N = frame
+    w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair = weights
+    with b.block("Closure normals and tangents in world space "
+                 "(loom_cloth_surface.osl)"):
+        np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
+        nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
+        t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
+        tt = surface_transmission_tangent(t, back)
+        tt_w = b.label(normalize(T * tt.x + B * tt.y + N * tt.z), "transmission tangent world")
+
+    # ---------------------------------------------------------------- closures
+    with b.block("Closures (closure_mapping.h table)"):
+        transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * w_gap")
+        b.link(vec(w_gap, w_gap, w_gap), transp.inputs["Color"])
+        d_np = b.new("ShaderNodeBsdfDiffuse", label="diffuse(n_p) * w_diffuse_np")
+        b.link(w_dnp, d_np.inputs["Color"])
+        b.link(0.0, d_np.inputs["Roughness"])  # Lambert (Oren-Nayar off)
+        b.link(np_w, d_np.inputs["Normal"])
+        d_ns = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * w_diffuse_ns")
+        b.link(w_dns, d_ns.inputs["Color"])
+        b.link(0.0, d_ns.inputs["Roughness"])
+        t_np = b.new("ShaderNodeBsdfTranslucent", label="translucent(n_p) * w_translucent_np")
+        b.link(w_tnp, t_np.inputs["Color"])
+        b.link(np_w, t_np.inputs["Normal"])
+        t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
+        b.link(w_tns, t_ns.inputs["Color"])
+        gl = ggx_glossy(b, 'microfacet("ggx", N_c, t, ax, ay) * w_glossy',
+                        vec(w_glossy, w_glossy, w_glossy), refl.y, refl.z, nc_w, t_w)
+        hair = b.new("ShaderNodeBsdfHair", component="Transmission",
+                     label="hair_transmission(N, r1, r2, t, 0) * w_hair")
+        b.link(vec(w_hair, w_hair, w_hair), hair.inputs["Color"])
+        b.link(0.0, hair.inputs["Offset"])
+        b.link(trans.y, hair.inputs["RoughnessU"])
+        b.link(trans.z, hair.inputs["RoughnessV"])
+        b.link(tt_w, hair.inputs["Tangent"])
+        yarns = b.add_shaders(n.outputs["BSDF"] for n in (d_np, d_ns, t_np, t_ns, gl, hair))
+    return transp, yarns
+
+
 def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Linear",
                         name: str | None = None):
     """Build (or rebuild in place) the node group for this atlas and return it.
@@ -356,36 +434,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         vis_gl = b.label(select(back, 1.0, surface_glossy_light_visibility(V_, Nc, hor, K,
                                                                            vis_amb_f)), "vis_gl")
 
-    with b.block("closure_mapping.h: surface_lut_coords, surface_lut_slices, surface_lut_uv"):
-        lx, ly, lz = surface_lut_coords(V_, t, K)
-        s0, s1, sf = surface_lut_slices(lz, K)
-        # the reflection panel at this view; the transmission panel on a back face for the
-        # physical slab's tangent (surface_lut_transmission_x)
-        lxt = surface_lut_transmission_x(lx, back)
-        by_panel = surface_lut_uvs(c_info[0], {0.0: lx, 1.0: lxt}, ly, {"s0": s0, "s1": s1}, K)
-        uvs = {}
-        for what, panel in (("reflection", 0.0), ("transmission", 1.0)):
-            for which in ("s0", "s1"):
-                uvs[what, which] = b.label(by_panel[panel, which],
-                                           f"LUT uv ({what}), slice {which}")
-
-    with b.block("Closure LUT (g, ax, ay | h, r1, r2, l), slices mixed (loom_cloth_surface.osl)"):
-        def lut_lookup(what):  # two slices, mixed by sf
-            looks = []
-            for which in ("s0", "s1"):
-                node = b.new("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND",
-                             label=f"{LUT} ({what}, {which})")
-                node.image = load_atlas_image(atlas_dir, manifest, LUT, label)
-                b.link(uvs[what, which], node.inputs["Vector"])
-                looks.append((b.vector_socket(node.outputs["Color"]),
-                              b.float_socket(node.outputs["Alpha"])))
-            return mix(looks[0][0], looks[1][0], sf), mix(looks[0][1], looks[1][1], sf)
-
-        refl, _ = lut_lookup("reflection")
-        trans, trans_a = lut_lookup("transmission")
-        b.label(refl, "refl (g, ax, ay)")
-        b.label(trans, "trans (h, r1, r2)")
-        b.label(trans_a, "trans l")
+    refl, trans, trans_a = _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info, back, K)
 
     with b.block("closure_mapping.h: surface_closure_weights"):
         (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair) = surface_closure_weights(
@@ -396,40 +445,8 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
                        (w_glossy, "w_glossy"), (w_hair, "w_hair")):
             b.label(e, txt)
 
-    with b.block("Closure normals and tangents in world space "
-                 "(loom_cloth_surface.osl)"):
-        np_w = b.label(normalize(T * np_.x + B * np_.y + N * np_.z), "n_p world")
-        nc_w = b.label(normalize(T * Nc.x + B * Nc.y + N * Nc.z), "N_c world")
-        t_w = b.label(normalize(T * t.x + B * t.y + N * t.z), "t world")
-        tt = surface_transmission_tangent(t, back)
-        tt_w = b.label(normalize(T * tt.x + B * tt.y + N * tt.z), "transmission tangent world")
-
-    # ---------------------------------------------------------------- closures
-    with b.block("Closures (closure_mapping.h table)"):
-        transp = b.new("ShaderNodeBsdfTransparent", label="transparent() * w_gap")
-        b.link(vec(w_gap, w_gap, w_gap), transp.inputs["Color"])
-        d_np = b.new("ShaderNodeBsdfDiffuse", label="diffuse(n_p) * w_diffuse_np")
-        b.link(w_dnp, d_np.inputs["Color"])
-        b.link(0.0, d_np.inputs["Roughness"])  # Lambert (Oren-Nayar off)
-        b.link(np_w, d_np.inputs["Normal"])
-        d_ns = b.new("ShaderNodeBsdfDiffuse", label="diffuse(N) * w_diffuse_ns")
-        b.link(w_dns, d_ns.inputs["Color"])
-        b.link(0.0, d_ns.inputs["Roughness"])
-        t_np = b.new("ShaderNodeBsdfTranslucent", label="translucent(n_p) * w_translucent_np")
-        b.link(w_tnp, t_np.inputs["Color"])
-        b.link(np_w, t_np.inputs["Normal"])
-        t_ns = b.new("ShaderNodeBsdfTranslucent", label="translucent(N) * w_translucent_ns")
-        b.link(w_tns, t_ns.inputs["Color"])
-        gl = ggx_glossy(b, 'microfacet("ggx", N_c, t, ax, ay) * w_glossy',
-                        vec(w_glossy, w_glossy, w_glossy), refl.y, refl.z, nc_w, t_w)
-        hair = b.new("ShaderNodeBsdfHair", component="Transmission",
-                     label="hair_transmission(N, r1, r2, t, 0) * w_hair")
-        b.link(vec(w_hair, w_hair, w_hair), hair.inputs["Color"])
-        b.link(0.0, hair.inputs["Offset"])
-        b.link(trans.y, hair.inputs["RoughnessU"])
-        b.link(trans.z, hair.inputs["RoughnessV"])
-        b.link(tt_w, hair.inputs["Tangent"])
-        yarns = b.add_shaders(n.outputs["BSDF"] for n in (d_np, d_ns, t_np, t_ns, gl, hair))
+    transp, yarns = _surface_closures(b, (T, B, N), np_, Nc, t, back, refl, trans,
+                                      (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair))
 
     far = build_average_closures(b, load_atlas_image(atlas_dir, manifest, AVERAGE_TEXTURE, label),
                                  V_, back, T, N, Vw, a_info, average_gap_mean(manifest),

@@ -58,11 +58,9 @@ from .node_raywave_lobes import (asg_frame, asg_integral_from_lut, asg_integral_
                                  raywave_lobe_weights, raywave_ply_space,
                                  raywave_residual_diffuse_weight,
                                  raywave_residual_translucent_weight, raywave_residual_uv)
-from .node_wave import (diffraction_cell_row, diffraction_gap_offset, diffraction_gap_sampled,
-                        diffraction_light_direction, diffraction_lobe_closure, diffraction_lobe_weight, diffraction_sample_uv,
-                        diffraction_split, diffraction_stratum, diffraction_table_s,
-                        diffraction_tile_pick, noise_lobe_uv, noise_pick)
-from .nodes_expr import (Builder, cos, cross, dot, floor, max_, normalize, select, sin, sqrt,
+from .node_gap_diffraction import build_gap_diffraction
+from .node_wave import diffraction_gap_sampled, noise_lobe_uv, noise_pick
+from .nodes_expr import (Builder, cos, cross, dot, max_, normalize, select, sin, sqrt,
                          sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Ray-wave"
@@ -249,6 +247,145 @@ def build_lobe_group(name: str, albedo_image, integral_image, K, noise_image=Non
     return group
 
 
+def _lobe_nodes(b, table, tex_params, g, lobe_groups, node_coords, weft, point, K):
+    """One lobe group node per fitted lobe of f_refl and f_high (loom_lobes), fed its texels
+    and the point's quantities (``point``: the lobe group's other inputs), each within what
+    the lobes before it left of the budget: (the lobe nodes, the energy they send out)."""
+    fi, fj = node_coords
+    rows, cols = g["m"] // 2 + 1, g["n"] // 2 + 1
+    lobe_outputs = []
+    used = (0.0, 0.0, 0.0)  # what the lobes so far send out (raywave_energy_budget)
+
+    def lobe_texels(part_name, l, lobes):
+        """p0, mu1, p1, tint of lobe l for the yarn at this point: each yarn's texels, selected
+        by `weft`; a table or tint that both yarns share is read once."""
+        nodes_of, tint_of, per_yarn = {}, {"": (1.0, 1.0, 1.0)}, {}  # f_refl has no tint
+        for y in ("warp", "weft"):
+            f = tex_params[f"{part_name}_{y}"]
+            tf = tex_params[f"tint_{y}"] if part_name == "high" else ""
+            if f not in nodes_of:
+                s0, t0 = asg_node_uv(fi, fj, 0, l, lobes, rows, cols, K)
+                s1, t1 = asg_node_uv(fi, fj, 1, l, lobes, rows, cols, K)
+                p0, mu1 = table(f, s0, t0, what=f"lobe {l} part 0")
+                p1, _ = table(f, s1, t1, what=f"lobe {l} part 1")
+                nodes_of[f] = (p0, mu1, p1)
+            if tf not in tint_of:
+                ts, tt = asg_tint_uv(fi, fj, l, lobes, rows, cols)
+                tint_of[tf], _ = table(tf, ts, tt, what=f"lobe {l}")
+            per_yarn[y] = (*nodes_of[f], tint_of[tf])
+        return tuple(a if a is e else select(weft, e, a)
+                     for a, e in zip(per_yarn["warp"], per_yarn["weft"]))
+
+    for part_name, lobes in (("refl", g["refl_lobes"]), ("high", g["high_lobes"])):
+        for l in range(lobes):
+            with b.block(f"loom_lobes: {part_name} lobe {l} (asg_node_uv, asg_tint_uv)"):
+                p0, mu1, p1, tintc = lobe_texels(part_name, l, lobes)
+                node = b.new("ShaderNodeGroup", label=f"{part_name} lobe {l}")
+                node.node_tree = lobe_groups[part_name]
+                node.hide = False
+                args = {**point, "p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "used": used}
+                for n, _kind in LOBE_INPUTS:
+                    b.link(args[n], node.inputs[n])
+                lobe_outputs.append(node)
+                used = used + b.vector_socket(node.outputs["energy"])
+    return lobe_outputs, used
+
+
+def _residual_and_layers(b, table, tex_params, g, slice_, weft, lobe_outputs, open_, vis_v,
+                         factors, used):
+    """The energy residual's and the double layer's weights (raywave_lobes.h,
+    double_layer_factors.h), within what the lobes left of the point's budget: (the diffuse
+    closure's weight, the translucent closure's weight)."""
+    theta_i, h = slice_
+    k_b, k_f = factors
+    M, N_ = g["m"], g["n"]
+    with b.block("Energy residual (raywave_lobes.h: raywave_residual_uv, weights)"):
+        res = {}
+        for side in (0, 1):
+            rs, rt = raywave_residual_uv(theta_i, h, g["theta_min"], g["theta_max"], M, N_, side)
+            per_yarn = {}
+            for y in ("warp", "weft"):
+                f = tex_params[f"residual_{y}"]
+                if f not in per_yarn:
+                    per_yarn[f], _ = table(f, rs, rt, what=f"side {side}")
+            e_w = per_yarn[tex_params["residual_warp"]]
+            e_e = per_yarn[tex_params["residual_weft"]]
+            res[side] = e_w if e_w is e_e else select(weft, e_e, e_w)
+        # The point's forward light T (double_layer_factors.h): the lobes' parts, then e_f.
+        t_fwd = res[1]
+        for node in lobe_outputs:
+            t_fwd = t_fwd + b.vector_socket(node.outputs["forward"])
+        t_fwd = b.label(t_fwd, "T (forward light)")
+        w_diffuse = b.label(raywave_residual_diffuse_weight(res[0], open_, vis_v)
+                            + raywave_layer_diffuse_weight(t_fwd, open_, vis_v, k_b),
+                            "residual and layers' diffuse weight")
+        w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, k_f, g["blend"])
+                           + raywave_layer_translucent_weight(t_fwd, open_, k_f, g["blend"]),
+                           "residual and layers' translucent weight")
+        # After the lobes, within what they left of the budget (raywave_energy_budget).
+        rest = b.label(raywave_energy_budget(w_diffuse + w_transl, used, open_),
+                       "budget of the residual and the layers")
+        w_diffuse = w_diffuse * rest
+        w_transl = w_transl * rest
+    return w_diffuse, w_transl
+
+
+def _raywave_closures(b, Nw, w_transl, w_diffuse, gap, gap_delta, gap_lobes, lobe_outputs, K):
+    """The point's closures (loom_cloth_raywave.osl): (the yarns' closures, the gaps')."""
+    with b.block("Closures (loom_cloth_raywave.osl)"):
+        tr = b.new("ShaderNodeBsdfTranslucent",
+                   label="translucent(N) * (residual and layers' translucent weight)")
+        b.link(w_transl, tr.inputs["Color"])
+        b.link(Nw, tr.inputs["Normal"])
+        dif_node = b.new("ShaderNodeBsdfDiffuse",
+                         label="diffuse(N) * (residual and layers' diffuse weight)")
+        dif_node.inputs["Roughness"].default_value = 0.0
+        b.link(w_diffuse, dif_node.inputs["Color"])
+        b.link(Nw, dif_node.inputs["Normal"])
+        transp = b.new("ShaderNodeBsdfTransparent",
+                       label="transparent() * (1 - open), less the sampled diffraction")
+        b.link(gap_delta, transp.inputs["Color"])
+        # The lobes first: Cycles' SVM compiler emits the closures of an Add Shader chain in
+        # order, and a value stays on its stack (255 floats) until its last user is compiled.
+        # The layers' closures read every lobe's `forward`; compiled after the lobes, they keep
+        # only those few values alive, not every lobe's look-ups (see build_lobe_group).
+        # The gaps' closures behind a Mix Shader whose factor is 1 in a gap and 0 elsewhere:
+        # Cycles' SVM compiler jumps over a mix input of weight 0 and over the nodes only it
+        # needs (SVMCompiler::generate_multi_closure), so yarn points skip the diffraction
+        # sampling (the OSL shader's `if (diffraction_gap_sampled(gap) ...)`: Blender reads a
+        # stored coverage of 0 as a tiny positive value, so `gap > 0` would run it everywhere);
+        # where it runs the factor is 1 and the weights are unchanged.
+        gap_closures = b.add_shaders((*gap_lobes, transp.outputs["BSDF"]))
+        if gap_lobes:
+            mix = b.new("ShaderNodeMixShader",
+                        label="diffraction_gap_sampled: the gaps' closures, else none")
+            b.link(diffraction_gap_sampled(gap, K), mix.inputs["Fac"])
+            b.connect(gap_closures, mix.inputs[2])
+            gap_closures = mix.outputs["Shader"]
+        yarns = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs),
+                               tr.outputs["BSDF"], dif_node.outputs["BSDF"]))
+    return yarns, gap_closures
+
+
+def _lobe_groups(name, atlas_dir, image, rw, nz, K, functions):
+    """The lobe groups of this atlas, {"refl": ..., "high": ...}: one for both parts, or one
+    each where f_refl and f_high read different noise tiles (speckle_noise.h)."""
+    albedo_img = image(rw["shading"]["microfacet_albedo"])
+    integral_img = image(rw["shading"]["asg_integral"])
+    if nz:
+        lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, integral_img, K,
+                                              image(nz[part]), part == "refl", nz["instances"],
+                                              functions)
+                       for part in ("refl", "high")}
+    else:
+        one = build_lobe_group(f"{name} lobe", albedo_img, integral_img, K,
+                               functions=functions)
+        lobe_groups = {"refl": one, "high": one}
+    for lg in lobe_groups.values():
+        lg["loom_atlas"] = os.path.abspath(atlas_dir)
+    return lobe_groups
+
+
 def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Linear",
                         name: str | None = None):
     """Build (or rebuild in place) the ray-wave node group for this atlas and return it.
@@ -264,7 +401,6 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     rw = manifest["raywave"]
     tex_params, _ = _manifest.raywave_osl_parameters(manifest)
     M, N_ = g["m"], g["n"]
-    rows, cols = M // 2 + 1, N_ // 2 + 1
 
     name = name or group_name(manifest)
     label = f"Loom {manifest.get('spec', {}).get('name', 'atlas')}"
@@ -275,21 +411,9 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
             images[tex_name] = node_mode.load_atlas_image(atlas_dir, manifest, tex_name, label)
         return images[tex_name]
 
-    albedo_img = image(rw["shading"]["microfacet_albedo"])
-    integral_img = image(rw["shading"]["asg_integral"])
     functions: dict = {}  # the function groups (Builder.call) of this build
     nz = _manifest.raywave_noise(manifest)
-    if nz:  # f_refl and f_high lobes read different noise tiles (speckle_noise.h)
-        lobe_groups = {part: build_lobe_group(f"{name} lobe {part}", albedo_img, integral_img, K,
-                                              image(nz[part]), part == "refl", nz["instances"],
-                                              functions)
-                       for part in ("refl", "high")}
-    else:
-        one = build_lobe_group(f"{name} lobe", albedo_img, integral_img, K,
-                               functions=functions)
-        lobe_groups = {"refl": one, "high": one}
-    for lg in lobe_groups.values():
-        lg["loom_atlas"] = os.path.abspath(atlas_dir)
+    lobe_groups = _lobe_groups(name, atlas_dir, image, rw, nz, K, functions)
     group = _new_group(name, (("Scale", "NodeSocketFloat"), ("Average", "NodeSocketFloat")),
                        (("BSDF", "NodeSocketShader"),),
                        f"Loom ray-wave cloth from atlas {os.path.abspath(atlas_dir)}")
@@ -377,170 +501,25 @@ def build_raywave_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         fj = b.label(asg_node_coord(h, g["h_min"], g["h_max"], N_), "fj")
 
     # ---------------------------------------------------------------- lobes
-    lobe_outputs = []
-    used = (0.0, 0.0, 0.0)  # what the lobes so far send out (raywave_energy_budget)
-
-    def lobe_texels(part_name, l, lobes):
-        """p0, mu1, p1, tint of lobe l for the yarn at this point: each yarn's texels, selected
-        by `weft`; a table or tint that both yarns share is read once."""
-        nodes_of, tint_of, per_yarn = {}, {"": (1.0, 1.0, 1.0)}, {}  # f_refl has no tint
-        for y in ("warp", "weft"):
-            f = tex_params[f"{part_name}_{y}"]
-            tf = tex_params[f"tint_{y}"] if part_name == "high" else ""
-            if f not in nodes_of:
-                s0, t0 = asg_node_uv(fi, fj, 0, l, lobes, rows, cols, K)
-                s1, t1 = asg_node_uv(fi, fj, 1, l, lobes, rows, cols, K)
-                p0, mu1 = table(f, s0, t0, what=f"lobe {l} part 0")
-                p1, _ = table(f, s1, t1, what=f"lobe {l} part 1")
-                nodes_of[f] = (p0, mu1, p1)
-            if tf not in tint_of:
-                ts, tt = asg_tint_uv(fi, fj, l, lobes, rows, cols)
-                tint_of[tf], _ = table(tf, ts, tt, what=f"lobe {l}")
-            per_yarn[y] = (*nodes_of[f], tint_of[tf])
-        return tuple(a if a is e else select(weft, e, a)
-                     for a, e in zip(per_yarn["warp"], per_yarn["weft"]))
-
-    for part_name, lobes in (("refl", g["refl_lobes"]), ("high", g["high_lobes"])):
-        for l in range(lobes):
-            with b.block(f"loom_lobes: {part_name} lobe {l} (asg_node_uv, asg_tint_uv)"):
-                p0, mu1, p1, tintc = lobe_texels(part_name, l, lobes)
-                node = b.new("ShaderNodeGroup", label=f"{part_name} lobe {l}")
-                node.node_tree = lobe_groups[part_name]
-                node.hide = False
-                args = {"p0": p0, "mu1": mu1, "p1": p1, "tint": tintc, "V": V_, "xp": xp,
-                        "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
-                        **dict(zip(node_visibility.HORIZON_SOCKETS, hor)), "open": open_,
-                        "vis_v": vis_v, "k_f": k_f, "s": g["blend"],
-                        "theta_i": theta_i, "noise_instance": noise_inst,
-                        "noise_shift": noise_shift, "used": used}
-                for n, _kind in LOBE_INPUTS:
-                    b.link(args[n], node.inputs[n])
-                lobe_outputs.append(node)
-                used = used + b.vector_socket(node.outputs["energy"])
+    lobe_outputs, used = _lobe_nodes(b, table, tex_params, g, lobe_groups, (fi, fj), weft, {
+        "V": V_, "xp": xp, "yp": yp, "t": t, "T": T, "B": B, "N": Nw, "back": back,
+        **dict(zip(node_visibility.HORIZON_SOCKETS, hor)), "open": open_, "vis_v": vis_v,
+        "k_f": k_f, "s": g["blend"], "theta_i": theta_i, "noise_instance": noise_inst,
+        "noise_shift": noise_shift}, K)
 
     # ---------------------------------------------------------------- energy residual
-    with b.block("Energy residual (raywave_lobes.h: raywave_residual_uv, weights)"):
-        res = {}
-        for side in (0, 1):
-            rs, rt = raywave_residual_uv(theta_i, h, g["theta_min"], g["theta_max"], M, N_, side)
-            per_yarn = {}
-            for y in ("warp", "weft"):
-                f = tex_params[f"residual_{y}"]
-                if f not in per_yarn:
-                    per_yarn[f], _ = table(f, rs, rt, what=f"side {side}")
-            e_w = per_yarn[tex_params["residual_warp"]]
-            e_e = per_yarn[tex_params["residual_weft"]]
-            res[side] = e_w if e_w is e_e else select(weft, e_e, e_w)
-        # The point's forward light T (double_layer_factors.h): the lobes' parts, then e_f.
-        t_fwd = res[1]
-        for node in lobe_outputs:
-            t_fwd = t_fwd + b.vector_socket(node.outputs["forward"])
-        t_fwd = b.label(t_fwd, "T (forward light)")
-        w_diffuse = b.label(raywave_residual_diffuse_weight(res[0], open_, vis_v)
-                            + raywave_layer_diffuse_weight(t_fwd, open_, vis_v, k_b),
-                            "residual and layers' diffuse weight")
-        w_transl = b.label(raywave_residual_translucent_weight(res[1], open_, k_f, g["blend"])
-                           + raywave_layer_translucent_weight(t_fwd, open_, k_f, g["blend"]),
-                           "residual and layers' translucent weight")
-        # After the lobes, within what they left of the budget (raywave_energy_budget).
-        rest = b.label(raywave_energy_budget(w_diffuse + w_transl, used, open_),
-                       "budget of the residual and the layers")
-        w_diffuse = w_diffuse * rest
-        w_transl = w_transl * rest
+    w_diffuse, w_transl = _residual_and_layers(b, table, tex_params, g, (theta_i, h), weft,
+                                               lobe_outputs, open_, vis_v, (k_b, k_f), used)
 
     # ---------------------------------------------------------------- gap diffraction
     gap = 1.0 - open_
-    gap_delta = vec(gap, gap, gap)
-    gap_lobes = []
-    dif = _manifest.raywave_diffraction(manifest)
-    if dif:
-        with b.block("Gap diffraction (diffraction_sampling.h; loom_cloth_raywave.osl)"):
-            # Four independent uniform numbers. (Not one node's Value and Color: Cycles' white
-            # noise computes Color.r with the very hash of Value, kernel/svm/white_noise.h.)
-            geo_p = b.vector_socket(geo.outputs["Position"])
-            rnd_nodes = []
-            for w in (0.0, 1.0):
-                node = b.new("ShaderNodeTexWhiteNoise", noise_dimensions="4D",
-                             label=f'noise("hash", P, {w:g} ...)')
-                b.link(geo_p, node.inputs["Vector"])
-                b.link(w, node.inputs["W"])
-                rnd_nodes.append(node)
-            rnd = b.vector_socket(rnd_nodes[0].outputs["Color"])
-            r3 = b.float_socket(rnd_nodes[1].outputs["Value"])
-            nx, ny, size = dif["tiles_x"], dif["tiles_y"], dif["size"]
-            ox = diffraction_gap_offset(uv.x - floor(uv.x), dif["weft_yarns"],
-                                        dif["gap_fraction"][0])
-            oy = diffraction_gap_offset(uv.y - floor(uv.y), dif["warp_yarns"],
-                                        dif["gap_fraction"][1])
-            tx = b.label(diffraction_tile_pick(ox, nx, rnd.x), "tile x")
-            ty = b.label(diffraction_tile_pick(oy, ny, rnd.y), "tile y")
-            gs, gt = diffraction_sample_uv(0.5, size, tx, ty, nx, ny, size, K)
-            p_out, _ = table(dif["file"], gs, gt, what="p_out")
-            n_samples = int(K["LOOM_DIFFRACTION_SAMPLES"])
-            for k in range(n_samples):
-                u_y, sgn_y = diffraction_split(diffraction_stratum(rnd.z, k, 1.0 / n_samples))
-                u_x, sgn_x = diffraction_split(diffraction_stratum(r3, k, 0.6180339887))
-                gs, gt = diffraction_sample_uv(u_y, 0, tx, ty, nx, ny, size, K)
-                t_y, _ = table(dif["file"], gs, gt, what=f"t_y (marginal), lobe {k}")
-                for c in range(3):
-                    row = diffraction_cell_row(t_y[c], size)
-                    gs, gt = diffraction_sample_uv(u_x, row, tx, ty, nx, ny, size, K)
-                    t_x, _ = table(dif["file"], gs, gt, what=f"t_x, lobe {k} channel {c}")
-                    L, ok1 = b.call(diffraction_light_direction,
-                                    V_, sgn_x * diffraction_table_s(t_x[c], K),
-                                    sgn_y * diffraction_table_s(t_y[c], K))
-                    Nd, alpha, ok2 = b.call(diffraction_lobe_closure, V_, L, K=K)
-                    ok = ok1 * ok2
-                    ls, lt = microfacet_albedo_uv(dot(Nd, V_), alpha, K)
-                    E, _ = table(rw["shading"]["microfacet_albedo"], ls, lt,
-                                 what=f"lobe {k} channel {c}")
-                    w = gap * b.call(diffraction_lobe_weight, V_, L, p_out[c], E.y, K=K) * ok
-                    unit = tuple(1.0 if i == c else 0.0 for i in range(3))
-                    rf = b.new("ShaderNodeBsdfRefraction", distribution="BECKMANN",
-                               label=f'microfacet("beckmann", N, N, a, a, eta, 1), lobe {k} '
-                                     f'channel {c}')
-                    b.link(vec(*(w if i == c else 0.0 for i in range(3))), rf.inputs["Color"])
-                    b.link(sqrt(alpha), rf.inputs["Roughness"])
-                    b.link(select(back, 1.0 / K["LOOM_RAYWAVE_ETA"], K["LOOM_RAYWAVE_ETA"]),
-                           rf.inputs["IOR"])
-                    b.link(normalize(T * Nd.x + B * Nd.y + Nw * Nd.z), rf.inputs["Normal"])
-                    gap_lobes.append(rf.outputs["BSDF"])
-                    gap_delta = gap_delta - vec(*unit) * (gap * p_out[c] * ok
-                                                          * (1.0 / n_samples))
+    gap_lobes, gap_delta = build_gap_diffraction(
+        b, table, b.vector_socket(geo.outputs["Position"]), uv, V_, (T, B, Nw), back, gap,
+        _manifest.raywave_diffraction(manifest), rw["shading"]["microfacet_albedo"], K)
 
     # ---------------------------------------------------------------- closures
-    with b.block("Closures (loom_cloth_raywave.osl)"):
-        tr = b.new("ShaderNodeBsdfTranslucent",
-                   label="translucent(N) * (residual and layers' translucent weight)")
-        b.link(w_transl, tr.inputs["Color"])
-        b.link(Nw, tr.inputs["Normal"])
-        dif_node = b.new("ShaderNodeBsdfDiffuse",
-                         label="diffuse(N) * (residual and layers' diffuse weight)")
-        dif_node.inputs["Roughness"].default_value = 0.0
-        b.link(w_diffuse, dif_node.inputs["Color"])
-        b.link(Nw, dif_node.inputs["Normal"])
-        transp = b.new("ShaderNodeBsdfTransparent",
-                       label="transparent() * (1 - open), less the sampled diffraction")
-        b.link(gap_delta, transp.inputs["Color"])
-        # The lobes first: Cycles' SVM compiler emits the closures of an Add Shader chain in
-        # order, and a value stays on its stack (255 floats) until its last user is compiled.
-        # The layers' closures read every lobe's `forward`; compiled after the lobes, they keep
-        # only those few values alive, not every lobe's look-ups (see build_lobe_group).
-        # The gaps' closures behind a Mix Shader whose factor is 1 in a gap and 0 elsewhere:
-        # Cycles' SVM compiler jumps over a mix input of weight 0 and over the nodes only it
-        # needs (SVMCompiler::generate_multi_closure), so yarn points skip the diffraction
-        # sampling (the OSL shader's `if (diffraction_gap_sampled(gap) ...)`: Blender reads a
-        # stored coverage of 0 as a tiny positive value, so `gap > 0` would run it everywhere);
-        # where it runs the factor is 1 and the weights are unchanged.
-        gap_closures = b.add_shaders((*gap_lobes, transp.outputs["BSDF"]))
-        if gap_lobes:
-            mix = b.new("ShaderNodeMixShader",
-                        label="diffraction_gap_sampled: the gaps' closures, else none")
-            b.link(diffraction_gap_sampled(gap, K), mix.inputs["Fac"])
-            b.connect(gap_closures, mix.inputs[2])
-            gap_closures = mix.outputs["Shader"]
-        yarns = b.add_shaders((*(n.outputs["BSDF"] for n in lobe_outputs),
-                               tr.outputs["BSDF"], dif_node.outputs["BSDF"]))
+    yarns, gap_closures = _raywave_closures(b, Nw, w_transl, w_diffuse, gap, gap_delta,
+                                            gap_lobes, lobe_outputs, K)
 
     far = build_average_closures(b, image(AVERAGE_TEXTURE), V_, back, T, Nw, Vw, a_info,
                                  _manifest.average_gap_mean(manifest),
