@@ -140,8 +140,8 @@ TEST(AverageFit, TheSurfaceTiersAveragedClosuresMatchTheModelAveragedOverTheRepe
 
 TEST(AverageFit, TheRaywaveTiersAveragedClosuresBeatALambertianOfTheSameAlbedo) {
   // The ray-wave tier's averaged BSDF has sharper features (forward transmission, fiber
-  // highlights) than four closures carry: measured, not yet within the 10 % (see the
-  // README); what must hold is that the fit is closer to the model than the Lambertian pair.
+  // highlights) than four closures carry: measured, not yet within the 10 % (see
+  // docs/far.md); what must hold is that the fit is closer to the model than the Lambertian pair.
   const loom::Atlas a = loom::load_atlas(loom::test::draft_atlas("gray_wool_twill", "raywave"));
   for (const vec3 wo : {vec3(0, 0, 1), vec3(0, 0, -1), view(0.6, 0.8, false)}) {
     const Versus v = against_model(a, normalize(wo));
