@@ -2,7 +2,7 @@
 # Sets up, builds and runs every Loom test:
 #   - the C++ unit tests (CTest label cpp), built once, with AddressSanitizer +
 #     UndefinedBehaviorSanitizer, in build-san/, and a bounded run of each libFuzzer target
-#     (label fuzz, $LOOM_FUZZ_SECONDS each, default 30) from build-fuzz/ (scripts/build_san.sh);
+#     (label fuzz, $LOOM_FUZZ_SECONDS each, default 20) from build-fuzz/ (scripts/build_san.sh);
 #   - the Blender tests (label blender, headless, in the Blender that scripts/blender.sh finds or
 #     provisions), the OSL compile check (label osl, skipped with a message when oslc is
 #     absent) and the Flamenco job type's check (label farm, Node.js), from the release build in

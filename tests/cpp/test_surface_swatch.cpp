@@ -75,8 +75,9 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
   // Colours within the surface tier's reach (between its cloth's swatch at albedo 0, the sheen
   // alone, and at albedo 1): gray wool twill, and plain in a brown. With "colour_reading":
   // "swatch" the closures' swatch, on other and more points of the repeat than the bake's, is
-  // the picked colour within Delta E 2000 of 2; with the ply-albedo reading it is far from it.
-  // (About a minute under the sanitizers: four draft bakes, their swatches on 100 points.)
+  // the picked colour within Delta E 2000 of 2; with the ply-albedo reading (gray wool twill's,
+  // the control) it is far from it. (About a minute under the sanitizers: three draft bakes,
+  // their swatches on 100 points.)
   const loom::SpectralUpsampler up(loom::ColourConverter(""));
   for (const char* preset : {"gray_wool_twill", "plain"}) {
     nlohmann::json d = loom::preset(preset);
@@ -84,8 +85,9 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
     if (std::string(preset) == "plain") d["yarn"]["color"] = {{"linear", {0.30, 0.15, 0.08}}};
     loom::AtlasSwatchSettings fine;
     fine.points = 100, fine.n = 12, fine.n_views = 3;  // (other points than the bake's 64)
-    double de[2];
-    for (int swatch = 0; swatch < 2; ++swatch) {
+    const bool control = std::string(preset) == "gray_wool_twill";
+    double de[2] = {0, 0};
+    for (int swatch = control ? 0 : 1; swatch < 2; ++swatch) {
       d["model"]["colour_reading"] = swatch ? "swatch" : "ply_albedo";
       const std::string name =
           std::string(preset) + (std::string(preset) == "plain" ? "-brown" : "");
@@ -110,7 +112,7 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
                 << "\n";
     }
     EXPECT_LT(de[1], 2.0) << preset;
-    EXPECT_GT(de[0], 5.0) << preset << ": the ply-albedo reading should be far off";
+    if (control) EXPECT_GT(de[0], 5.0) << preset << ": the ply-albedo reading should be far off";
   }
 }
 

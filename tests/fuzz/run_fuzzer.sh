@@ -6,14 +6,14 @@
 #     OUT_DIR: the corpus grows in OUT_DIR/TARGET (seeded from tests/fuzz/corpus/TARGET, and for
 #       spec the built-in presets, for wif the sample drafts); a crash, a sanitizer report or a broken property leaves its
 #       input in OUT_DIR/TARGET-crash-* and fails the run
-#     SECONDS: default $LOOM_FUZZ_SECONDS, else 30
+#     SECONDS: default $LOOM_FUZZ_SECONDS, else 20
 # Keep each finding as a test: copy the input into tests/fuzz/corpus/TARGET/ (replayed here at
 # the start of every run, and by the unit tests for the manifest and texture corpora:
 # tests/cpp/test_fuzz_corpus.cpp).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 (($# == 3 || $# == 4)) || { echo "usage: run_fuzzer.sh FUZZER TARGET OUT_DIR [SECONDS]" >&2; exit 2; }
-fuzzer=$1 target=$2 out=$3 seconds=${4:-${LOOM_FUZZ_SECONDS:-30}}
+fuzzer=$1 target=$2 out=$3 seconds=${4:-${LOOM_FUZZ_SECONDS:-20}}
 case $seconds in ''|*[!0-9]*|0)
   echo "run_fuzzer.sh: SECONDS must be a whole number of seconds >= 1, not \"$seconds\"" >&2
   exit 2 ;;
