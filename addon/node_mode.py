@@ -48,7 +48,7 @@ from .node_bsdf import ggx_glossy
 from .node_texel_guard import texel_guard_geometry, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_vectors, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
-                         mix, normalize, select, sqrt, sync_sockets, vec)
+                         mix, normalize, select, sync_sockets, vec)
 
 GROUP_PREFIX = "Loom Surface"
 

@@ -17,7 +17,7 @@
 
 namespace loom::fiber_search {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 /// Where a regular fiber's polyline is at z: segment k, parameter t.
 inline void regular_segment(double z, double dz, int64_t& k, double& t) {

@@ -385,8 +385,9 @@ TEST(AtlasCli, KilledBakesLeaveACompleteAtlasOrNone) {
   EXPECT_TRUE(loom::validate_atlas(d).empty());
   EXPECT_EQ(temporaries(), 0) << "the dead bake's temporary was not swept";
   // Over the draft atlas: another draft bake (--force: baked afresh, not reused) killed after
-  // the first line of each stage, the first, middle and last line of the writing (none, some
-  // and all of the textures in the temporary), and the last progress line before the result:
+  // the first line of each stage (at the closure LUT's: no texture in the temporary yet), the
+  // first, middle and last line of the writing (one, some and all of the maps written; the LUT
+  // follows them), and the last progress line before the result:
   // each a different state of the temporary (a kill after the n-th line re-runs the bake up to
   // it, so every line would cost O(lines^2) bakes; 6 min under the sanitizers).
   std::set<int> kill_at;
