@@ -37,7 +37,9 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests",
                                 "blender"))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import loom_testlib as lt  # noqa: E402
+from swatch_scene import principled_sheen, swatch_scene  # noqa: E402
 
 import bpy  # noqa: E402
 
@@ -62,17 +64,6 @@ def extra_args(p):
     p.add_argument("--ortho-scale", type=float, default=0.05,
                    help="metres the camera sees across (0.05: weave resolved; 1 and more: "
                         "many repeats a pixel)")
-
-
-def principled_sheen():
-    mat = bpy.data.materials.new("Principled sheen")
-    mat.use_nodes = True
-    p = mat.node_tree.nodes["Principled BSDF"]
-    p.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    p.inputs["Roughness"].default_value = 0.8
-    p.inputs["Sheen Weight"].default_value = 1.0
-    p.inputs["Sheen Roughness"].default_value = 0.5
-    return mat
 
 
 def node_counts(tree):
@@ -112,24 +103,8 @@ def main():
     if args.timing_samples <= args.samples:
         raise SystemExit(f"--timing-samples: {args.timing_samples} (allowed: more than --samples, "
                          f"{args.samples})")
-    scene = lt.empty_scene()
+    scene, plane = swatch_scene(args.res, args.ortho_scale, args.light)
     scene.cycles.samples = args.samples
-    scene.cycles.use_denoising = False
-    scene.render.resolution_x = scene.render.resolution_y = args.res
-    scene.render.resolution_percentage = 100
-    plane = lt.add_plane("Swatch", half=2.0, uv_per_meter=1.0)
-    cam_data = bpy.data.cameras.new("Ortho")
-    cam_data.type = "ORTHO"
-    cam_data.ortho_scale = args.ortho_scale
-    cam = bpy.data.objects.new("Camera", cam_data)
-    cam.location = (0.0, -0.3, 0.95)
-    lt.look_along(cam, (0.0, 0.3, -0.95))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
-    sun.data.energy = 3.0
-    lt.look_along(sun, (-0.3, 0.2, -0.93) if args.light == "front" else (0.08, -0.25, 0.965))
-    scene.collection.objects.link(sun)
 
     materials = {"principled_sheen": principled_sheen()}
     for item in args.atlases:

@@ -17,7 +17,9 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests",
                                 "blender"))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import loom_testlib as lt  # noqa: E402
+from swatch_scene import principled_sheen, swatch_scene  # noqa: E402
 
 import bpy  # noqa: E402
 
@@ -30,26 +32,6 @@ CLOSURES = ("ShaderNodeBsdfDiffuse", "ShaderNodeBsdfDiffuse", "ShaderNodeBsdfTra
 
 def extra_args(p):
     p.add_argument("--repeats", type=int, default=5)
-
-
-def scene_with_swatch():
-    scene = lt.empty_scene()
-    scene.cycles.use_denoising = False
-    scene.render.resolution_x = scene.render.resolution_y = 96
-    plane = lt.add_plane("Swatch", half=2.0, uv_per_meter=1.0)
-    cam_data = bpy.data.cameras.new("Ortho")
-    cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 0.05
-    cam = bpy.data.objects.new("Camera", cam_data)
-    cam.location = (0.0, -0.3, 0.95)
-    lt.look_along(cam, (0.0, 0.3, -0.95))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", type="SUN"))
-    sun.data.energy = 3.0
-    lt.look_along(sun, (-0.3, 0.2, -0.93))
-    scene.collection.objects.link(sun)
-    return scene, plane
 
 
 def floor_material(name, images, n_reads, n_closures):
@@ -100,12 +82,8 @@ def main():
     lt.enable_addon()
     import loom.api
 
-    scene, plane = scene_with_swatch()
-    ref = bpy.data.materials.new("Principled sheen")
-    ref.use_nodes = True
-    p = ref.node_tree.nodes["Principled BSDF"]
-    p.inputs["Sheen Weight"].default_value = 1.0
-    p.inputs["Roughness"].default_value = 0.8
+    scene, plane = swatch_scene(96)
+    ref = principled_sheen()
     loom_mat = loom.api.assign(plane, args.atlas, mode="nodes", scale=None,
                                material=bpy.data.materials.new("loom"), average=0.0)
     group = next(n for n in loom_mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
