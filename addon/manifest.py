@@ -14,6 +14,9 @@ from . import osl_source
 SURFACE_MAPS = ("ply_frame", "ply_normal", "yarn_info", "albedo_reflect", "albedo_transmit",
                 "spec_params", "horizon_0", "horizon_1")
 SURFACE_LUT = "closure_lut"
+# The per-texel fitted closures (fitted_closures.h), in atlases baked with model.closures
+# "fitted": where present, both shaders render them instead of the per-sample mapping.
+FITTED_TEXTURE = "fitted_closures"
 # The repeat-averaged closures both tiers read far away (average_closures.h; the manifest's
 # "average" section names it).
 AVERAGE_TEXTURE = "average_closures"
@@ -73,6 +76,24 @@ def atlas_problem(atlas_dir: str) -> str | None:
     got = list(textures[SURFACE_LUT].get("size", []))
     if got != want:
         return f"closure LUT is {got}, the shaders expect {want}"
+    return fitted_problem(textures)
+
+
+def fitted_problem(textures: dict) -> str | None:
+    """None if the atlas has no per-texel fitted closures or has them in the layout
+    fitted_closures.h reads (LOOM_FITTED_TILES tiles of the maps' width plus two), else why
+    not."""
+    if FITTED_TEXTURE not in textures:
+        return None
+    K = osl_source.required_constants(("LOOM_FITTED_TILES",))
+    try:
+        w, h = (int(v) for v in textures["ply_frame"]["size"])
+        got = [int(v) for v in textures[FITTED_TEXTURE]["size"]]
+    except (KeyError, TypeError, ValueError):
+        return "fitted closures or ply_frame without a size"
+    want = [int(K["LOOM_FITTED_TILES"]) * (w + 2), h]
+    if got != want:
+        return f"fitted closures are {got}, the shaders expect {want}: re-bake the atlas"
     return None
 
 

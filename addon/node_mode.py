@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 import os
+from types import SimpleNamespace
 
 import bpy
 
@@ -45,6 +46,8 @@ from .manifest import AVERAGE_TEXTURE, average_gap_mean
 from .manifest import SURFACE_LUT as LUT, SURFACE_MAPS as MAPS, repeat_aspect
 from .node_average import REQUIRED_CONSTANTS as AVERAGE_CONSTANTS, build_average_closures
 from .node_bsdf import ggx_glossy
+from .node_fitted import FITTED_TEXTURE, REQUIRED_CONSTANTS as FITTED_CONSTANTS
+from .node_fitted import fitted_yarn_weights
 from .node_texel_guard import texel_guard_geometry, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_vectors, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
@@ -65,7 +68,7 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSUR
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "678a0546758dcd7e",
-    "loom_cloth_surface.osl": "dc27d314bce25b8b",
+    "loom_cloth_surface.osl": "ccaec87ff5f1857e",
 }
 
 
@@ -356,6 +359,7 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     if int(K["LOOM_HORIZON_DIRS"]) != 8:
         raise ValueError("the atlas stores 8 horizon directions (horizon_0, horizon_1)")
 
+    fitted = FITTED_TEXTURE in manifest["textures"]
     name = name or group_name(manifest)
     group = bpy.data.node_groups.get(name)
     if group is None or group.bl_idname != "ShaderNodeTree":
@@ -388,6 +392,8 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
         tex = {}
         for m in MAPS:
+            if fitted and m == "spec_params":  # the fits hold what it gives the mapping
+                continue
             node = b.new("ShaderNodeTexImage", interpolation=interpolation,
                          extension="REPEAT", label=m)
             node.image = load_atlas_image(atlas_dir, manifest, m, label)
@@ -399,7 +405,9 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     c_info, a_info = tex["yarn_info"]  # kind, along, ply_id | gap coverage c
     c_refl, a_refl = tex["albedo_reflect"]  # k_rd | k_rs
     c_trans, a_trans = tex["albedo_transmit"]  # k_td | k_ts
-    c_par, _ior = tex["spec_params"]  # roughness, optical thickness, diffuse blend | ior
+    # roughness, optical thickness, diffuse blend | ior; not read with fitted closures (the fits
+    # hold what the mapping takes from it): only the blend would be, as the OSL shader's constant
+    c_par, _ior = tex["spec_params"] if not fitted else (SimpleNamespace(z=0.5), 1.5)
     c_h0, a_h0 = tex["horizon_0"]
     c_h1, a_h1 = tex["horizon_1"]
 
@@ -427,23 +435,37 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     with b.block("closure_mapping.h: surface_glossy_normal"):
         Nc = b.label(surface_glossy_normal(t), "N_c")
 
-    with b.block("visibility.h, closure_mapping.h: vis_v, vis_amb, vis_gl (1 on back faces)"):
-        vis_amb_f = horizon_ambient_visibility(hor, K)
-        vis_v = b.label(select(back, 1.0, horizon_visibility(V_, hor, K)), "vis_v")
-        vis_amb = b.label(select(back, 1.0, vis_amb_f), "vis_amb")
-        vis_gl = b.label(select(back, 1.0, surface_glossy_light_visibility(V_, Nc, hor, K,
-                                                                           vis_amb_f)), "vis_gl")
+    if fitted:  # fitted_closures.h: per-texel factors in place of the mapping's weights
+        with b.block("visibility.h: vis_v (1 on back faces)"):
+            vis_v = b.label(select(back, 1.0, horizon_visibility(V_, hor, K)), "vis_v")
+        refl, trans, _trans_a = _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info,
+                                             back, K)
+        width = int(manifest["textures"]["ply_frame"]["size"][0])
+        w_gap = a_info
+        w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair = fitted_yarn_weights(
+            b, load_atlas_image(atlas_dir, manifest, FITTED_TEXTURE, label), uv, back,
+            interpolation, width, (c_refl, a_refl, c_trans, a_trans), refl.x, trans.x, vis_v,
+            constants(FITTED_CONSTANTS))
+    else:
+        with b.block("visibility.h, closure_mapping.h: vis_v, vis_amb, vis_gl (1 on back faces)"):
+            vis_amb_f = horizon_ambient_visibility(hor, K)
+            vis_v = b.label(select(back, 1.0, horizon_visibility(V_, hor, K)), "vis_v")
+            vis_amb = b.label(select(back, 1.0, vis_amb_f), "vis_amb")
+            vis_gl = b.label(select(back, 1.0, surface_glossy_light_visibility(V_, Nc, hor, K,
+                                                                               vis_amb_f)),
+                             "vis_gl")
 
-    refl, trans, trans_a = _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info, back, K)
+        refl, trans, trans_a = _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info, back,
+                                            K)
 
-    with b.block("closure_mapping.h: surface_closure_weights"):
-        (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair) = surface_closure_weights(
-            a_info, blend, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
-            refl.x, trans.x, trans_a)
-        for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
-                       (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
-                       (w_glossy, "w_glossy"), (w_hair, "w_hair")):
-            b.label(e, txt)
+        with b.block("closure_mapping.h: surface_closure_weights"):
+            (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair) = surface_closure_weights(
+                a_info, blend, a_refl, c_refl, a_trans, c_trans, vis_v, vis_amb, vis_gl,
+                refl.x, trans.x, trans_a)
+    for e, txt in ((w_gap, "w_gap"), (w_dnp, "w_diffuse_np"), (w_dns, "w_diffuse_ns"),
+                   (w_tnp, "w_translucent_np"), (w_tns, "w_translucent_ns"),
+                   (w_glossy, "w_glossy"), (w_hair, "w_hair")):
+        b.label(e, txt)
 
     transp, yarns = _surface_closures(b, (T, B, N), np_, Nc, t, back, refl, trans,
                                       (w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair))

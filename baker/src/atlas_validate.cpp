@@ -280,6 +280,17 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
                                    t["size"].dump(), map_size->dump()));
     }
   }
+  // The per-texel fitted closures (model.closures "fitted"): their tiles follow the maps' size.
+  if (tex.contains("fitted_closures") && map_size && map_size->is_array() &&
+      map_size->size() == 2 && (*map_size)[0].is_number_integer()) {
+    const json want = {LOOM_FITTED_TILES * ((*map_size)[0].get<int>() + 2), (*map_size)[1]};
+    const json& t = tex["fitted_closures"];
+    if (!t.is_object() || !t.contains("size") || t["size"] != want)
+      errors.push_back(fmt::format("textures.fitted_closures: size {} is not {} (the maps' "
+                                   "{} tiles of their width plus two: re-bake the atlas)",
+                                   t.is_object() ? t.value("size", json()).dump() : t.dump(),
+                                   want.dump(), LOOM_FITTED_TILES));
+  }
   if (m.contains("tier") && !m["tier"].is_string())
     errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));
   check_average_fields(m, tex, errors);

@@ -9,6 +9,7 @@
 
 #include "bake_stages.h"
 #include "loom/closure_lut.h"
+#include "loom/fitted_closures.h"
 #include "loom/atlas_writer.h"
 #include "loom/average_fit.h"
 #include "loom/colour.h"
@@ -191,6 +192,23 @@ void bake_surface_swatch_stage(const BakeContext& ctx, json& manifest) {
   ctx.progress("swatch", 1.0);
 }
 
+/// The per-texel fitted closures (fitted_closures.h; model.closures "fitted"), fitted against the
+/// atlas as written so far; adds their texture.
+void bake_fitted_closures_stage(const BakeContext& ctx, json& manifest) {
+  const Atlas a = ctx.out.load_written(manifest);
+  const Image img = fit_texel_closures(a, fitted_closure_options(ctx.spec.quality),
+                                       [&](double x) { ctx.progress("fitted closures", x); });
+  ctx.out.write_table(
+      img, "fitted_closures", {"a_np | g | h", "a_ns | ax | r1", "b_np | ay | r2", "b_ns | 0 | l"},
+      fmt::format("per-texel closures fitted to the model (fitted_closures.h), per unit colour "
+                  "term: {} tiles side by side, (a_np, a_ns, b_np, b_ns), (g, ax, ay, 0), (h, r1, "
+                  "r2, l) for the front, then the same for the back; each tile the maps' width "
+                  "plus a column either side repeating the opposite edge",
+                  LOOM_FITTED_TILES),
+      false, "periodic");
+  manifest["textures"] = ctx.out.hashed_textures();
+}
+
 /// The repeat-averaged closures (average_fit.h), fitted against the atlas as written so far;
 /// adds their texture and the manifest's "average" section.
 void bake_average_stage(const BakeContext& ctx, json& manifest) {
@@ -248,6 +266,7 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
         manifest_of(ctx, bake_key, repeat, out.hashed_textures(), std::move(raywave));
     if (spec.tier == Tier::Surface && spec.colour_reading == ColourReading::Swatch)
       bake_surface_swatch_stage(ctx, manifest);
+    if (spec.closures == ClosureSource::Fitted) bake_fitted_closures_stage(ctx, manifest);
     bake_average_stage(ctx, manifest);
     res.reused = out.publish(manifest, bake_key, opt.force);
   }

@@ -8,6 +8,7 @@
 
 #include "loom/closure_lut.h"
 #include "loom/cycles_closures.h"
+#include "loom/fitted_closures.h"
 
 namespace loom {
 
@@ -127,19 +128,28 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
   if (!(V.z > 0) || L.z == 0) return {0, 0, 0};
   const vec3 Nc = surface_glossy_normal(t);
   float vis_v = front ? horizon_visibility(V, hor) : 1.0f;
-  float vis_amb = front ? horizon_ambient_visibility(hor) : 1.0f;
-  float vis_gl = front ? surface_glossy_light_visibility(V, Nc, hor) : 1.0f;
   float lx, ly, lz;
   surface_lut_coords(V, t, lx, ly, lz);
   float refl[4], trans[4];  // the closure LUT's panels (g, ax, ay, 0) and (h, r1, r2, l)
   sample_closure_lut(a.closure_lut, p.kind, lx, ly, lz, 0, refl);
   sample_closure_lut(a.closure_lut, p.kind, surface_lut_transmission_x(lx, front ? 0 : 1), ly, lz,
                      1, trans);
-  float w_gap, w_glossy, w_hair;
+  float w_glossy, w_hair;
   color w_dnp, w_dns, w_tnp, w_tns;
-  surface_closure_weights(p.gap, p.blend, p.k_rs, p.k_rd, p.k_ts, p.k_td, vis_v, vis_amb, vis_gl,
-                          refl[0], trans[0], trans[3], w_gap, w_dnp, w_dns, w_tnp, w_tns, w_glossy,
-                          w_hair);
+  if (has_fitted_closures(a)) {  // per-texel factors fitted at bake time (fitted_closures.h)
+    float fd[4], fs[4];
+    sample_fitted_closures(a, p.u, p.v, front ? 0 : 1, fd, fs);
+    fitted_closure_weights(p.k_rd, p.k_rs, p.k_td, p.k_ts, fd[0], fd[1], fd[2], fd[3], fs[0],
+                           fs[1], fs[2], refl[0], trans[0], vis_v, w_dnp, w_dns, w_tnp, w_tns,
+                           w_glossy, w_hair);
+  } else {  // mapped per sample (closure_mapping.h)
+    float vis_amb = front ? horizon_ambient_visibility(hor) : 1.0f;
+    float vis_gl = front ? surface_glossy_light_visibility(V, Nc, hor) : 1.0f;
+    float w_gap;
+    surface_closure_weights(p.gap, p.blend, p.k_rs, p.k_rd, p.k_ts, p.k_td, vis_v, vis_amb,
+                            vis_gl, refl[0], trans[0], trans[3], w_gap, w_dnp, w_dns, w_tnp,
+                            w_tns, w_glossy, w_hair);
+  }
   const vec3 z(0, 0, 1);
   const vec3 Nv = cycles::ensure_valid_specular_reflection(z, V, Nc);
   // Node mode's Translucent BSDF raises its normal like a glossy one (Cycles svm/closure.h);

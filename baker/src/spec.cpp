@@ -521,6 +521,12 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
                                    : Quality::Preview;
     const auto reading = m.choice("colour_reading", "ply_albedo", {"swatch", "ply_albedo"});
     s.colour_reading = reading == "swatch" ? ColourReading::Swatch : ColourReading::PlyAlbedo;
+    const auto closures = m.choice("closures", "mapped", {"mapped", "fitted"});
+    s.closures = closures == "fitted" ? ClosureSource::Fitted : ClosureSource::Mapped;
+    if (s.closures == ClosureSource::Fitted && s.tier != Tier::Surface)
+      errors.push_back(fmt::format("$.model.closures: \"fitted\" is the surface tier's only (not "
+                                   "yet on the {} tier); use \"mapped\" or \"tier\": \"surface\"",
+                                   to_string(s.tier)));
     s.optical_thickness = m.number("optical_thickness", s.optical_thickness, 0.01, 100, "");
     s.diffuse_blend = m.number("diffuse_blend", s.diffuse_blend, 0, 1, "");
     s.double_layer_blend = m.number("double_layer_blend", s.double_layer_blend, 0, 1, "");

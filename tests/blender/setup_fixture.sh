@@ -15,6 +15,14 @@ mkdir -p "$out/bin"
 cp "$bake" "$out/bin/loom-bake"
 bash "$repo/scripts/blender.sh" host-exec-wrapper "$out/bin/loom-bake" "$out/bin/loom-bake-wrapper"
 "$out/bin/loom-bake" bake plain -o "$out/atlas-plain" --quality preview --progress=none
+# The same cloth with per-texel fitted closures (model.closures "fitted", fitted_closures.h).
+"$out/bin/loom-bake" presets plain | python3 -c '
+import json, sys
+d = json.load(sys.stdin)
+d["name"], d["model"]["closures"] = "plain_fitted", "fitted"
+json.dump(d, sys.stdout)' > "$out/plain_fitted.json"
+"$out/bin/loom-bake" bake "$out/plain_fitted.json" -o "$out/atlas-plain-fitted" --quality preview \
+  --progress=none
 # The seven sample fabrics (ray-wave presets) at draft, for the ray-wave node-mode tests.
 # Two bakes at a time: much of a draft bake runs on one core.
 printf '%s\n' white_silk_organza orange_polyester_satin beige_silk_satin cream_cotton_twill \

@@ -1,6 +1,6 @@
 """Node mode is a transcription of the shared OSL headers: fail when their code has changed
 since (the TRANSCRIBED_FROM of node_mode, node_mode_raywave, node_raywave_lobes, node_wave,
-node_texel_guard, node_visibility and node_average), and check that node mode reads its constants from them.
+node_texel_guard, node_visibility, node_average and node_fitted), and check that node mode reads its constants from them.
 
     blender -b --factory-startup --python-exit-code 1 --python tests/blender/test_transcription.py
 
@@ -17,14 +17,14 @@ import loom_testlib as lt  # noqa: E402
 
 def main():
     lt.enable_addon()
-    from loom import (node_average, node_mode, node_mode_raywave, node_raywave_lobes,
+    from loom import (node_average, node_fitted, node_mode, node_mode_raywave, node_raywave_lobes,
                       node_texel_guard, node_visibility, node_wave, osl_source)
 
     d = osl_source.osl_dir()
     assert d is not None, "OSL sources not found next to the add-on"
     changed = []
     for module in (node_mode, node_mode_raywave, node_raywave_lobes, node_wave, node_texel_guard,
-                   node_visibility, node_average):
+                   node_visibility, node_average, node_fitted):
         for rel, fp in sorted(module.TRANSCRIBED_FROM.items()):
             now = osl_source.code_fingerprint(os.path.join(d, rel))
             status = "ok" if now == fp else "CHANGED"

@@ -12,6 +12,7 @@ namespace loom::shading {
 #include "../../../osl/include/loom/visibility.h"
 #include "../../../osl/include/loom/surface_bsdf.h"
 #include "../../../osl/include/loom/closure_mapping.h"
+#include "../../../osl/include/loom/fitted_closures.h"
 #include "../../../osl/include/loom/asg.h"
 #include "../../../osl/include/loom/diffraction_table.h"
 #include "../../../osl/include/loom/speckle_noise.h"

@@ -20,6 +20,9 @@ enum class Tier { Surface, Raywave, Fiber };
 
 const char* to_string(Quality q);
 enum class ColourReading { Swatch, PlyAlbedo };
+/// What the surface tier's shaders render (issue 31): closures mapped from the model per sample
+/// (closure_mapping.h), or fitted per texel at bake time (fitted_closures.h).
+enum class ClosureSource { Mapped, Fitted };
 const char* to_string(ColourReading r);
 const char* to_string(Tier t);
 
@@ -126,6 +129,9 @@ struct FabricSpec {
   /// changes to the swatch once the surface tier is solved for it too (issue 35): until then
   /// the two tiers would differ the more.
   ColourReading colour_reading = ColourReading::PlyAlbedo;
+  /// model.closures; "fitted" is the surface tier's only (the canonical spec omits "mapped", the
+  /// default, so atlases baked before it keep their keys).
+  ClosureSource closures = ClosureSource::Mapped;
   double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
   double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]
   /// s of the ray-wave supplement's Eq. S.22: the share of double-layer transmission that turns

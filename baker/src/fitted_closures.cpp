@@ -1,0 +1,230 @@
+#include "loom/fitted_closures.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "loom/closure_lut.h"
+#include "loom/cycles_closures.h"
+#include "loom/evaluator.h"
+
+namespace loom {
+
+using namespace shading;
+
+FittedClosureOptions fitted_closure_options(Quality q) {
+  FittedClosureOptions o;
+  switch (q) {
+    // A handful of views and lights fit the four small problems: on gray wool twill at
+    // `final` (65,536 texels), 3 views and 6 x 12 lights take 2.3 s for a mapping error of 0.149,
+    // 4 and 8 x 16 5 s for 0.148, 6 and 10 x 20 12 s for 0.147.
+    case Quality::Draft: o.views = 4, o.sphere_n = 6; break;
+    case Quality::Preview: o.views = 4, o.sphere_n = 8; break;
+    case Quality::Final: o.views = 4, o.sphere_n = 10; break;
+    case Quality::Reference: o.views = 6, o.sphere_n = 10; break;
+  }
+  return o;
+}
+
+namespace {
+
+/// One colour term's rows: up to two closures' values b1, b2 (per unit weight, f |cos| as Cycles'
+/// eval returns it), the model's term m, and each row's weight (solid angle over the view's
+/// directional albedo: the fit's objective is the mapping error's relative L1).
+struct Rows {
+  std::vector<double> b1, b2, m, w;
+  void add(double x1, double x2, double y, double wr) {
+    b1.push_back(x1), b2.push_back(x2), m.push_back(y), w.push_back(wr);
+  }
+};
+
+/// min sum w |x1 b1 + x2 b2 - m| over x >= 0 (x2 = 0 when !two), by iteratively reweighted
+/// least squares from the least-squares solution; the non-negative 2 x 2 problem is solved by
+/// trying the free solution and each single closure.
+std::array<double, 2> fit_two(const Rows& r, bool two, int iterations) {
+  const size_t n = r.m.size();
+  std::vector<double> om(r.w);
+  double scale = 0;
+  for (size_t k = 0; k < n; ++k) scale += std::fabs(r.m[k]) * r.w[k];
+  double wsum = 0;
+  for (double w : r.w) wsum += w;
+  const double delta = 1e-3 * (wsum > 0 ? scale / wsum : 0) + 1e-9;
+  std::array<double, 2> x{0, 0};
+  for (int it = 0; it <= iterations; ++it) {
+    double a11 = 0, a12 = 0, a22 = 0, y1 = 0, y2 = 0, mm = 0;
+    for (size_t k = 0; k < n; ++k) {
+      a11 += om[k] * r.b1[k] * r.b1[k], a12 += om[k] * r.b1[k] * r.b2[k];
+      a22 += om[k] * r.b2[k] * r.b2[k];
+      y1 += om[k] * r.b1[k] * r.m[k], y2 += om[k] * r.b2[k] * r.m[k], mm += om[k] * r.m[k] * r.m[k];
+    }
+    auto sse = [&](double p, double q) {
+      return mm - 2 * (p * y1 + q * y2) + p * p * a11 + 2 * p * q * a12 + q * q * a22;
+    };
+    std::array<double, 2> best{a11 > 0 ? std::max(y1 / a11, 0.0) : 0.0, 0};
+    if (two) {
+      const std::array<double, 2> only2{0, a22 > 0 ? std::max(y2 / a22, 0.0) : 0.0};
+      if (sse(only2[0], only2[1]) < sse(best[0], best[1])) best = only2;
+      const double det = a11 * a22 - a12 * a12;
+      if (det > 1e-12 * (a11 * a22 + 1e-30)) {
+        const double p = (a22 * y1 - a12 * y2) / det, q = (a11 * y2 - a12 * y1) / det;
+        if (p >= 0 && q >= 0 && sse(p, q) <= sse(best[0], best[1])) best = {p, q};
+      }
+    }
+    x = best;
+    for (size_t k = 0; k < n; ++k)
+      om[k] = r.w[k] / std::max(std::fabs(x[0] * r.b1[k] + x[1] * r.b2[k] - r.m[k]), delta);
+  }
+  return x;
+}
+
+/// One texel's two panels on one side.
+struct SideFit {
+  float fd[4] = {0, 0, 0, 0}, fs[4] = {0, 0, 0, 0};
+};
+
+SideFit fit_side(const Atlas& a, const SurfacePoint& p, bool front, const std::vector<vec3>& views,
+                 const std::vector<vec3>& lights, double dw, int iterations) {
+  float hor[LOOM_HORIZON_DIRS];
+  for (int k = 0; k < LOOM_HORIZON_DIRS; ++k) hor[k] = p.horizon[k];
+  const vec3 z(0, 0, 1), Nc = surface_glossy_normal(p.t);
+  const vec3 tt = surface_transmission_tangent(p.t, front ? 0 : 1);
+  const float rough = sggx_fiber_roughness(p.roughness);
+  Rows D, S, T, X;
+  struct Sample {
+    vec3 L;
+    double sum, spec;
+  };
+  std::vector<Sample> samples(lights.size());
+  for (const vec3& V : views) {  // the view mirrored to the upper side, as the evaluators do
+    const vec3 wo(V.x, V.y, front ? V.z : -V.z);
+    double den = 0;
+    for (size_t k = 0; k < lights.size(); ++k) {
+      const vec3& L = lights[k];
+      const vec3 wi(L.x, L.y, front ? L.z : -L.z);
+      // Unit colours: red carries the diffuse and the specular term, green the specular alone.
+      const color f = surface_bsdf_eval(wi, wo, p.t, p.n_p, rough, p.thickness, p.blend, 1.0f,
+                                        color(1, 0, 0), 1.0f, color(1, 0, 0), p.gap, hor);
+      const double c = std::fabs(L.z);
+      samples[k] = {L, f[0] * c, f[1] * c};
+      den += f[0] * c * dw;
+    }
+    if (den < 1e-6) continue;  // an open gap: nothing to fit at this view
+    const double w = dw / den;
+    // The specular closures as the LUT shapes and weighs them at this view (closure_mapping.h).
+    float lx, ly, lz, refl[4], trans[4];
+    surface_lut_coords(V, p.t, lx, ly, lz);
+    sample_closure_lut(a.closure_lut, p.kind, lx, ly, lz, 0, refl);
+    sample_closure_lut(a.closure_lut, p.kind, surface_lut_transmission_x(lx, front ? 0 : 1), ly,
+                       lz, 1, trans);
+    const float vis = front ? horizon_visibility(V, hor) : 1.0f;
+    const cycles::GGXReflection ggx(cycles::ensure_valid_specular_reflection(z, V, Nc), p.t,
+                                    refl[1], refl[2], z, V);
+    const cycles::HairLobe hair(z, tt, trans[1], trans[2], 0, V, true);
+    const double g = std::max(refl[0], 0.0f) * vis, h = std::max(trans[0], 0.0f);
+    const vec3 np_t = cycles::ensure_valid_specular_reflection(z, V, p.n_p);  // node mode's
+    for (const Sample& s : samples) {
+      const vec3& L = s.L;
+      if (L.z > 0) {
+        D.add(cycles::diffuse_eval(p.n_p, L, z) * vis, cycles::diffuse_eval(z, L, z) * vis,
+              s.sum - s.spec, w);
+        S.add(g * ggx.eval(L), 0, s.spec, w);
+      } else {
+        const double tl = cycles::translucent_eval(z, L, z);
+        T.add(cycles::translucent_eval(np_t, L, z), tl, s.sum - s.spec, w);
+        X.add(h * hair.eval(L), tl, s.spec, w);
+      }
+    }
+  }
+  SideFit out;
+  if (D.m.empty() && T.m.empty()) return out;
+  // (Within the range the shaders' guard keeps, fitted_weight_guard.)
+  auto fit = [&](const Rows& r, bool two) {
+    auto x = fit_two(r, two, iterations);
+    for (double& v : x) v = std::min(v, double(LOOM_FITTED_MAX_WEIGHT));
+    return x;
+  };
+  const auto d = fit(D, true), s = fit(S, false), t = fit(T, true), x = fit(X, true);
+  out.fd[0] = float(d[0]), out.fd[1] = float(d[1]), out.fd[2] = float(t[0]), out.fd[3] = float(t[1]);
+  out.fs[0] = float(s[0]), out.fs[1] = float(x[0]), out.fs[2] = float(x[1]);
+  return out;
+}
+
+}  // namespace
+
+Image fit_texel_closures(const Atlas& a, const FittedClosureOptions& o,
+                         const std::function<void(double)>& progress) {
+  const Image& ref = a.map("ply_frame");
+  const int W = ref.width, H = ref.height, tw = W + 2;
+  Image img(LOOM_FITTED_TILES * tw, H, 4);
+  std::vector<vec3> views;
+  for (const vec3& v : fibonacci_sphere(2 * o.views, 0.99))
+    if (v.z > 0) views.push_back(v);
+  const std::vector<vec3> lights = sphere_grid(o.sphere_n);
+  const double dw = sphere_grid_dw(o.sphere_n);
+  // Texels that share everything the fit reads (the weave repeats its crossings, so most texels
+  // have twins a whole number of cells away) are fitted once: the fit is a pure function of
+  // those values, so this changes nothing but the time.
+  std::vector<SurfacePoint> points;
+  std::vector<int> cls(size_t(W) * H);
+  {
+    std::unordered_map<std::string, int> seen;
+    for (int iy = 0; iy < H; ++iy)
+      for (int ix = 0; ix < W; ++ix) {
+        const SurfacePoint p = guard_surface_point(texel_surface(a, ix, iy));
+        const float v[] = {p.t.x, p.t.y, p.t.z, p.n_p.x, p.n_p.y, p.n_p.z, p.gap, p.blend,
+                           p.roughness, p.thickness, p.kind, p.horizon[0], p.horizon[1],
+                           p.horizon[2], p.horizon[3], p.horizon[4], p.horizon[5], p.horizon[6],
+                           p.horizon[7]};
+        const std::string key(reinterpret_cast<const char*>(v), sizeof v);
+        const auto [it, added] = seen.try_emplace(key, int(points.size()));
+        if (added) points.push_back(p);
+        cls[size_t(iy) * W + ix] = it->second;
+      }
+  }
+  std::vector<std::array<SideFit, 2>> fits(points.size());
+  std::atomic<size_t> done{0};
+  tbb::parallel_for(size_t(0), points.size(), [&](size_t i) {
+    for (int back = 0; back < 2; ++back)
+      fits[i][back] = fit_side(a, points[i], back == 0, views, lights, dw, o.irls_iterations);
+    const size_t d = ++done;
+    if (progress && d % 256 == 0) progress(double(d) / points.size());
+  });
+  for (int iy = 0; iy < H; ++iy)
+    for (int ix = 0; ix < W; ++ix)
+      for (int back = 0; back < 2; ++back) {
+        const SideFit& f = fits[cls[size_t(iy) * W + ix]][back];
+        const float* panels[LOOM_FITTED_PANELS] = {f.fd, f.fs};
+        for (int k = 0; k < LOOM_FITTED_PANELS; ++k) {
+          const int tile = k + LOOM_FITTED_PANELS * back;
+          // The texel's column, and the padding column that repeats it across the tile's edge.
+          for (int col : {ix + 1, ix == W - 1 ? 0 : -1, ix == 0 ? W + 1 : -1}) {
+            if (col < 0) continue;
+            std::copy(panels[k], panels[k] + 4, img.px(tile * tw + col, iy));
+          }
+        }
+      }
+  if (progress) progress(1.0);
+  return img;
+}
+
+bool has_fitted_closures(const Atlas& a) {
+  return std::find(a.names.begin(), a.names.end(), "fitted_closures") != a.names.end();
+}
+
+void sample_fitted_closures(const Atlas& a, float u, float v, int back, float fd[4],
+                            float fs[4]) {
+  const Image& img = a.map("fitted_closures");
+  const float width = float(img.width / LOOM_FITTED_TILES - 2);
+  u = std::isfinite(u) ? u - std::floor(u) : 0.0f;
+  bilinear(img, fitted_closures_s(u, 0.0f, float(back), width), v, fd);
+  bilinear(img, fitted_closures_s(u, 1.0f, float(back), width), v, fs);
+  for (int c = 0; c < 4; ++c) fd[c] = fitted_weight_guard(fd[c]), fs[c] = fitted_weight_guard(fs[c]);
+}
+
+}  // namespace loom
