@@ -17,6 +17,7 @@ SURFACE_LUT = "closure_lut"
 # The per-texel fitted closures (fitted_closures.h), in atlases baked with model.closures
 # "fitted": where present, both shaders render them instead of the per-sample mapping.
 FITTED_TEXTURE = "fitted_closures"
+HORIZON_STRIP = "horizon_strip"  # their V(V) in one read (fitted_closures.h)
 # The repeat-averaged closures both tiers read far away (average_closures.h; the manifest's
 # "average" section names it).
 AVERAGE_TEXTURE = "average_closures"
@@ -85,7 +86,7 @@ def fitted_problem(textures: dict) -> str | None:
     not."""
     if FITTED_TEXTURE not in textures:
         return None
-    K = osl_source.required_constants(("LOOM_FITTED_TILES",))
+    K = osl_source.required_constants(("LOOM_FITTED_TILES",))  # and its horizon strip
     try:
         w, h = (int(v) for v in textures["ply_frame"]["size"])
         got = [int(v) for v in textures[FITTED_TEXTURE]["size"]]
@@ -94,6 +95,11 @@ def fitted_problem(textures: dict) -> str | None:
     want = [int(K["LOOM_FITTED_TILES"]) * (w + 2), h]
     if got != want:
         return f"fitted closures are {got}, the shaders expect {want}: re-bake the atlas"
+    K = osl_source.required_constants(("LOOM_HORIZON_DIRS",))
+    want = [int(K["LOOM_HORIZON_DIRS"]) * (w + 2), h]
+    got = list(textures.get(HORIZON_STRIP, {}).get("size", []))
+    if got != want:
+        return f"the horizon strip is {got or 'missing'}, the shaders expect {want}: re-bake the atlas"
     return None
 
 

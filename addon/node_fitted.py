@@ -5,17 +5,21 @@ at the view and the view-side visibility V(V), in place of the mapping's per-sam
 
 from __future__ import annotations
 
-from .manifest import FITTED_TEXTURE
-from .node_texel_guard import texel_guard
-from .nodes_expr import F, V, floor, max_, vec
+from .manifest import FITTED_TEXTURE, HORIZON_STRIP
+import math
+
+from .node_texel_guard import texel_guard, texel_guard_horizons
+from .node_visibility import horizon_ramp
+from .nodes_expr import F, V, atan2, clamp, floor, max_, min_, mix, select, vec
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
 TRANSCRIBED_FROM = {
-    "include/loom/fitted_closures.h": "3b5d6455ba2162b4",
+    "include/loom/fitted_closures.h": "e8ca7ea1b27fe19c",
 }
 
-REQUIRED_CONSTANTS = ("LOOM_FITTED_PANELS", "LOOM_FITTED_TILES", "LOOM_FITTED_MAX_WEIGHT")
+REQUIRED_CONSTANTS = ("LOOM_FITTED_PANELS", "LOOM_FITTED_TILES", "LOOM_FITTED_MAX_WEIGHT",
+                      "LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS")
 
 
 def fitted_closures_s(su: F, panel: int, back: F, width: int, K) -> F:
@@ -79,3 +83,35 @@ def fitted_yarn_weights(b, image, uv: V, back: F, interpolation: str, width: int
     with b.block("fitted_closures.h: fitted_closure_weights"):
         k_rd, k_rs, k_td, k_ts = optics
         return fitted_closure_weights(k_rd, k_rs, k_td, k_ts, fd, fs, lut_g, lut_h, vis_v)
+
+
+def horizon_strip_coords(w: V, su: F, width: int, K):
+    """fitted_closures.h: horizon_strip_coords(w, su, width, s, f) -> (s, f).
+
+        phi = atan2(w.y, w.x); if (phi < 0) phi += 2 pi
+        x = phi / (2 pi) DIRS;  k = min(floor(x), DIRS - 1);  f = clamp(x - k, 0, 1)
+        s = (k (width + 2) + 1 + su width) / (DIRS (width + 2))
+    """
+    n = float(K["LOOM_HORIZON_DIRS"])
+    phi = atan2(w.y, w.x)
+    phi = select(phi < 0.0, phi + 2.0 * math.pi, phi)
+    x = phi * (n / (2.0 * math.pi))
+    k = min_(floor(x), n - 1.0)
+    f = clamp(x - k, 0.0, 1.0)
+    tw = float(width + 2)
+    return k * (1.0 / n) + su * (float(width) / (n * tw)) + 1.0 / (n * tw), f
+
+
+def strip_visibility(b, image, uv: V, V_: V, back: F, interpolation: str, width: int, K) -> F:
+    """V(V) from the horizon strip, 1 on a back face (loom_cloth_surface.osl, fitted closures):
+    horizon_ramp(V, mix(h_k, h_k+1, f)) with the two sines read at V's azimuth, each guarded as
+    texel_guard_horizon."""
+    with b.block("fitted_closures.h, visibility.h: V(V) from the horizon strip"):
+        su = uv.x - floor(uv.x)
+        s, f = horizon_strip_coords(V_, su, width, K)
+        node = b.new("ShaderNodeTexImage", interpolation=interpolation, extension="REPEAT",
+                     label=HORIZON_STRIP)
+        node.image = image
+        b.link(vec(s, uv.y, 0.0), node.inputs["Vector"])
+        h = texel_guard_horizons(b.vector_socket(node.outputs["Color"]))
+        return b.label(select(back, 1.0, horizon_ramp(V_, mix(h.x, h.y, f), K)), "vis_v")

@@ -47,7 +47,7 @@ from .manifest import SURFACE_LUT as LUT, SURFACE_MAPS as MAPS, repeat_aspect
 from .node_average import REQUIRED_CONSTANTS as AVERAGE_CONSTANTS, build_average_closures
 from .node_bsdf import ggx_glossy
 from .node_fitted import FITTED_TEXTURE, REQUIRED_CONSTANTS as FITTED_CONSTANTS
-from .node_fitted import fitted_yarn_weights
+from .node_fitted import HORIZON_STRIP, fitted_yarn_weights, strip_visibility
 from .node_texel_guard import texel_guard_geometry, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_vectors, horizon_visibility
 from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
@@ -68,7 +68,7 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSUR
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
     "include/loom/closure_mapping.h": "678a0546758dcd7e",
-    "loom_cloth_surface.osl": "ccaec87ff5f1857e",
+    "loom_cloth_surface.osl": "b72342b61bedfd59",
 }
 
 
@@ -392,7 +392,9 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     with b.block("Atlas maps (manifest.json: textures, channels RGBA)"):
         tex = {}
         for m in MAPS:
-            if fitted and m == "spec_params":  # the fits hold what it gives the mapping
+            # With fitted closures: the fits hold what spec_params gives the mapping, and V(V)
+            # is read from the horizon strip (fitted_closures.h).
+            if fitted and m in ("spec_params", "horizon_0", "horizon_1"):
                 continue
             node = b.new("ShaderNodeTexImage", interpolation=interpolation,
                          extension="REPEAT", label=m)
@@ -408,8 +410,6 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
     # roughness, optical thickness, diffuse blend | ior; not read with fitted closures (the fits
     # hold what the mapping takes from it): only the blend would be, as the OSL shader's constant
     c_par, _ior = tex["spec_params"] if not fitted else (SimpleNamespace(z=0.5), 1.5)
-    c_h0, a_h0 = tex["horizon_0"]
-    c_h1, a_h1 = tex["horizon_1"]
 
     # ---------------------------------------------------------------- frame
     with b.block("Frame: T, B from the front normal, V, atlas vectors "
@@ -430,22 +430,23 @@ def build_surface_group(atlas_dir: str, manifest: dict, interpolation: str = "Li
         b.label(np_, "n_p")
         c_refl, a_refl, c_trans, a_trans, blend = texel_guard_optics(
             c_refl, a_refl, c_trans, a_trans, c_par)
-        hor = horizon_vectors(c_h0, a_h0, c_h1, a_h1)
+        if not fitted:
+            hor = horizon_vectors(*tex["horizon_0"], *tex["horizon_1"])
 
     with b.block("closure_mapping.h: surface_glossy_normal"):
         Nc = b.label(surface_glossy_normal(t), "N_c")
 
     if fitted:  # fitted_closures.h: per-texel factors in place of the mapping's weights
-        with b.block("visibility.h: vis_v (1 on back faces)"):
-            vis_v = b.label(select(back, 1.0, horizon_visibility(V_, hor, K)), "vis_v")
+        width = int(manifest["textures"]["ply_frame"]["size"][0])
+        KF = constants(FITTED_CONSTANTS)
+        vis_v = strip_visibility(b, load_atlas_image(atlas_dir, manifest, HORIZON_STRIP, label),
+                                 uv, V_, back, interpolation, width, KF)
         refl, trans, _trans_a = _surface_lut(b, atlas_dir, manifest, label, V_, t, c_info,
                                              back, K)
-        width = int(manifest["textures"]["ply_frame"]["size"][0])
         w_gap = a_info
         w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair = fitted_yarn_weights(
             b, load_atlas_image(atlas_dir, manifest, FITTED_TEXTURE, label), uv, back,
-            interpolation, width, (c_refl, a_refl, c_trans, a_trans), refl.x, trans.x, vis_v,
-            constants(FITTED_CONSTANTS))
+            interpolation, width, (c_refl, a_refl, c_trans, a_trans), refl.x, trans.x, vis_v, KF)
     else:
         with b.block("visibility.h, closure_mapping.h: vis_v, vis_amb, vis_gl (1 on back faces)"):
             vis_amb_f = horizon_ambient_visibility(hor, K)

@@ -11,7 +11,7 @@ from .nodes_expr import F, V, atan2, clamp, dot, select, vabs, vec, vmax, vmin
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
 TRANSCRIBED_FROM = {
-    "include/loom/visibility.h": "748a60042d62eda6",
+    "include/loom/visibility.h": "227539d6258fc762",
 }
 
 # The 8 horizon sines travel as three vectors, bins HORIZON_BINS[k] in horizon vector k: the
@@ -57,19 +57,27 @@ def horizon_sine(w: V, hv: list, K) -> F:
     return balanced_sum(terms)
 
 
-def horizon_visibility(w: V, hv: list, K) -> F:
-    """visibility.h: horizon_visibility(w, h).
+def horizon_ramp(w: V, s: F, K) -> F:
+    """visibility.h: horizon_ramp(w, s).
 
         if (w.z <= 0) return 1
-        s = horizon_sine(w, h)
         x = clamp((w.z - (s - SOFT)) / (2 SOFT), 0, 1);  return x x (3 - 2 x)
     """
     soft = K["LOOM_HORIZON_SOFTNESS"]
-    s = horizon_sine(w, hv, K)
     x = clamp((w.z - (s - soft)) / (2.0 * soft), 0.0, 1.0)
     smooth = x * x * (3.0 - 2.0 * x)
     below = 1.0 - (w.z > 0.0)  # w.z <= 0
     return select(below, 1.0, smooth)
+
+
+def horizon_visibility(w: V, hv: list, K) -> F:
+    """visibility.h: horizon_visibility(w, h).
+
+        if (w.z <= 0) return 1
+        return horizon_ramp(w, horizon_sine(w, h))
+
+    (horizon_ramp's own test of w.z is the same, so it is made once.)"""
+    return horizon_ramp(w, horizon_sine(w, hv, K), K)
 
 
 def horizon_ambient_visibility(hv: list, K) -> F:

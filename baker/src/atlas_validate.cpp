@@ -283,13 +283,18 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
   // The per-texel fitted closures (model.closures "fitted"): their tiles follow the maps' size.
   if (tex.contains("fitted_closures") && map_size && map_size->is_array() &&
       map_size->size() == 2 && (*map_size)[0].is_number_integer()) {
-    const json want = {LOOM_FITTED_TILES * ((*map_size)[0].get<int>() + 2), (*map_size)[1]};
-    const json& t = tex["fitted_closures"];
-    if (!t.is_object() || !t.contains("size") || t["size"] != want)
-      errors.push_back(fmt::format("textures.fitted_closures: size {} is not {} (the maps' "
-                                   "{} tiles of their width plus two: re-bake the atlas)",
-                                   t.is_object() ? t.value("size", json()).dump() : t.dump(),
-                                   want.dump(), LOOM_FITTED_TILES));
+    // (And the horizon strip they read V(V) from.)
+    for (const auto& [name, tiles] :
+         {std::pair<const char*, int>{"fitted_closures", LOOM_FITTED_TILES},
+          std::pair<const char*, int>{"horizon_strip", LOOM_HORIZON_DIRS}}) {
+      const json want = {tiles * ((*map_size)[0].get<int>() + 2), (*map_size)[1]};
+      const json& t = tex.value(name, json());
+      if (!t.is_object() || !t.contains("size") || t["size"] != want)
+        errors.push_back(fmt::format("textures.{}: size {} is not {} (the maps' {} tiles of "
+                                     "their width plus two: re-bake the atlas)",
+                                     name, t.is_object() ? t.value("size", json()).dump() : t.dump(),
+                                     want.dump(), tiles));
+    }
   }
   if (m.contains("tier") && !m["tier"].is_string())
     errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));

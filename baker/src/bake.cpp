@@ -206,6 +206,14 @@ void bake_fitted_closures_stage(const BakeContext& ctx, json& manifest) {
                   "plus a column either side repeating the opposite edge",
                   LOOM_FITTED_TILES),
       false, "periodic");
+  ctx.out.write_table(
+      horizon_strip(a), "horizon_strip", {"h_k", "h_k+1", "0", "0"},
+      fmt::format("the horizon maps' sines for the shaders' V(V) with fitted closures "
+                  "(fitted_closures.h): {} tiles side by side, tile k holding the sines of "
+                  "azimuths k and k + 1; each tile the maps' width plus a column either side "
+                  "repeating the opposite edge",
+                  LOOM_HORIZON_DIRS),
+      false, "periodic");
   manifest["textures"] = ctx.out.hashed_textures();
 }
 

@@ -1,5 +1,6 @@
 #include "loom/evaluator.h"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <tbb/parallel_for.h>
@@ -8,7 +9,6 @@
 
 #include "loom/closure_lut.h"
 #include "loom/cycles_closures.h"
-#include "loom/fitted_closures.h"
 
 namespace loom {
 
@@ -102,6 +102,20 @@ SurfacePoint texel_surface(const Atlas& a, int ix, int iy) {
   p.u = (ix + 0.5f) / float(ref.width), p.v = (iy + 0.5f) / float(ref.height);
   p.du = 1.0f / float(ref.width), p.dv = 1.0f / float(ref.height);
   return p;
+}
+
+bool has_fitted_closures(const Atlas& a) {
+  return std::find(a.names.begin(), a.names.end(), "fitted_closures") != a.names.end();
+}
+
+void sample_fitted_closures(const Atlas& a, float u, float v, int back, float fd[4],
+                            float fs[4]) {
+  const Image& img = a.map("fitted_closures");
+  const float width = float(img.width / LOOM_FITTED_TILES - 2);
+  u = std::isfinite(u) ? u - std::floor(u) : 0.0f;
+  bilinear(img, fitted_closures_s(u, 0.0f, float(back), width), v, fd);
+  bilinear(img, fitted_closures_s(u, 1.0f, float(back), width), v, fs);
+  for (int c = 0; c < 4; ++c) fd[c] = fitted_weight_guard(fd[c]), fs[c] = fitted_weight_guard(fs[c]);
 }
 
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,

@@ -12,6 +12,8 @@
 #include "loom/fitted_closures.h"
 #include "test_util.h"
 
+using namespace loom::shading;
+
 namespace {
 
 nlohmann::json surface_spec(const std::string& preset, const char* closures) {
@@ -64,6 +66,32 @@ TEST(FittedClosures, TheShadersReadEachTileAsThePeriodicMap) {
     }
 }
 
+TEST(FittedClosures, TheHorizonStripGivesTheHorizonMapsSine) {
+  // V(V) with fitted closures reads the horizon strip once, at V's azimuth; what it gives must be
+  // horizon_sine of the horizon maps read bilinearly at the same point, for any point and
+  // azimuth (the bins' edges and the wrap from the last azimuth to the first included).
+  const loom::Atlas a = loom::load_atlas(fitted_atlas("plain"));
+  const loom::Image strip = loom::horizon_strip(a);
+  EXPECT_EQ(strip.width, LOOM_HORIZON_DIRS * (a.map("horizon_0").width + 2));
+  const float width = float(a.map("horizon_0").width);
+  int n = 0;
+  for (int i = 0; i < 400; ++i) {
+    const float u = std::fmod(0.6180339f * i, 1.0f), v = std::fmod(0.7548776f * i + 0.1f, 1.0f);
+    const double phi = (i % 40 == 0) ? M_PI * (i / 40) / 4 : 0.37 * i;  // on bin edges too
+    const vec3 w(float(std::cos(phi)), float(std::sin(phi)), 0.3f);
+    float hs, hf, h2[4], m0[4], m1[4];
+    horizon_strip_coords(w, u, width, hs, hf);
+    loom::bilinear(strip, hs, v, h2);
+    loom::bilinear(a.map("horizon_0"), u, v, m0);
+    loom::bilinear(a.map("horizon_1"), u, v, m1);
+    float hor[LOOM_HORIZON_DIRS] = {m0[0], m0[1], m0[2], m0[3], m1[0], m1[1], m1[2], m1[3]};
+    EXPECT_NEAR(h2[0] + (h2[1] - h2[0]) * hf, horizon_sine(w, hor), 2e-6)
+        << u << " " << v << " " << phi;
+    n += std::fabs(hor[0]) > 1e-3;
+  }
+  EXPECT_GT(n, 100);  // the cloth's horizons are not all flat: the check means something
+}
+
 TEST(FittedClosures, CloserToTheModelThanThePerSampleMapping) {
   // The mapping error (relative L1 over the sphere of lights, 16 views on both sides, 36
   // texels; evaluator.h) against the model, on views and lights the fit never used (it fits 4
@@ -73,7 +101,9 @@ TEST(FittedClosures, CloserToTheModelThanThePerSampleMapping) {
   // 0.291, gray wool twill 0.117 against 0.138. The worst (texel, view) pair is not held to the
   // mapping's: a view-independent factor can miss where the mapping's does not (plain, here:
   // 2.26 against 1.83; with eval mapping's texels 2.30 against 2.34).
-  for (const char* preset : {"plain", "gray_wool_twill"}) {
+  // (Plain only: the fabric where the mapping is the hardest to beat; the eight fabrics' numbers
+  // are in docs/surface.md.)
+  for (const char* preset : {"plain"}) {
     const loom::Atlas fitted = loom::load_atlas(fitted_atlas(preset));
     const loom::Atlas mapped = loom::load_atlas(loom::test::draft_atlas(preset, "surface"));
     ASSERT_TRUE(loom::has_fitted_closures(fitted));
@@ -127,13 +157,17 @@ TEST(FittedClosures, OnlyTheSurfaceTierFitsAndTheChoiceIsNamed) {
 }
 
 TEST(FittedClosures, AnAtlasWhoseTilesDoNotFollowItsMapsIsRefused) {
-  const auto dir = loom::test::copy_atlas_dir(fitted_atlas("plain"), "fitted-bad-size");
-  loom::test::edit_atlas_manifest(dir, [](nlohmann::json& m) {
-    nlohmann::json& size = m["textures"]["fitted_closures"]["size"];
-    size[0] = size[0].get<int>() - 2;
-  });
-  const auto errors = loom::validate_atlas(dir);
-  bool named = false;
-  for (const auto& e : errors) named |= e.find("textures.fitted_closures") != std::string::npos;
-  EXPECT_TRUE(named) << (errors.empty() ? std::string("no error") : errors[0]);
+  for (const char* name : {"fitted_closures", "horizon_strip"}) {
+    const auto dir =
+        loom::test::copy_atlas_dir(fitted_atlas("plain"), std::string("fitted-bad-") + name);
+    loom::test::edit_atlas_manifest(dir, [&](nlohmann::json& m) {
+      nlohmann::json& size = m["textures"][name]["size"];
+      size[0] = size[0].get<int>() - 2;
+    });
+    const auto errors = loom::validate_atlas(dir);
+    bool named = false;
+    for (const auto& e : errors)
+      named |= e.find(std::string("textures.") + name) != std::string::npos;
+    EXPECT_TRUE(named) << name << ": " << (errors.empty() ? std::string("no error") : errors[0]);
+  }
 }

@@ -36,6 +36,13 @@ void bilinear(const Image& img, float u, float v, float out[4]);
 /// The exact texel (ix, iy) (row iy from the bottom).
 SurfacePoint texel_surface(const Atlas& a, int ix, int iy);
 
+/// Whether the atlas holds per-texel fitted closures (model.closures "fitted",
+/// fitted_closures.h).
+bool has_fitted_closures(const Atlas& a);
+/// Their two panels (a_np, a_ns, b_np, b_ns) and (m_g, m_h, l, 0) at (u, v) of the repeat, side
+/// `back`, read as a Linear image texture reads them and guarded as the shaders guard them.
+void sample_fitted_closures(const Atlas& a, float u, float v, int back, float fd[4], float fs[4]);
+
 /// p with every field in the range the baker writes (texel_guard.h): NaN to the field's neutral
 /// value, anything else outside its range to the nearest end, a degenerate ply frame to a valid
 /// one. The identity for every texel of a valid atlas; both tiers' evaluators apply it first, so

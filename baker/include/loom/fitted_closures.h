@@ -1,6 +1,7 @@
 // The surface tier's per-texel fitted closures (osl/include/loom/fitted_closures.h: the closure
 // set, the weights and the texture layout): each texel's weights fitted at bake time against the
-// model over the sphere of lights and a set of views, per unit of each colour term.
+// model over the sphere of lights and a set of views, per unit of each colour term. (Reading them
+// is the evaluators' part: has_fitted_closures, sample_fitted_closures in evaluator.h.)
 #pragma once
 #include <functional>
 
@@ -24,11 +25,8 @@ FittedClosureOptions fitted_closure_options(Quality q);
 Image fit_texel_closures(const Atlas& a, const FittedClosureOptions& o,
                          const std::function<void(double)>& progress = {});
 
-/// Whether the atlas holds fitted closures (an atlas baked with model.closures "fitted").
-bool has_fitted_closures(const Atlas& a);
-
-/// The two panels (a_np, a_ns, b_np, b_ns) and (m_g, m_h, l, 0) at (u, v) of the repeat, side
-/// `back`, read as a Linear image texture reads them and guarded as the shaders guard them.
-void sample_fitted_closures(const Atlas& a, float u, float v, int back, float fd[4], float fs[4]);
+/// The horizon strip (fitted_closures.h): the horizon maps' sines, tile k holding (h_k, h_k+1,
+/// 0, 0), for the shaders' V(V) in one read.
+Image horizon_strip(const Atlas& a);
 
 }  // namespace loom

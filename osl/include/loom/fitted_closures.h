@@ -22,11 +22,15 @@
 // The texture: LOOM_FITTED_TILES tiles side by side, tile = panel + LOOM_FITTED_PANELS * back,
 // panels (a_np, a_ns, b_np, b_ns) and (m_g, m_h, l, 0); each tile is the map's width plus a
 // column on either side repeating the opposite edge, so a bilinear read inside a tile is the
-// periodic bilinear read of the map and never mixes tiles.
+// periodic bilinear read of the map and never mixes tiles. V(V) is read from the horizon strip,
+// laid out alike: LOOM_HORIZON_DIRS tiles, tile k holding (h_k, h_k+1, 0, 0) of the horizon maps
+// (visibility.h), so that one read at the tile of V's azimuth gives the two sines horizon_sine
+// interpolates between.
 #ifndef LOOM_FITTED_CLOSURES_H
 #define LOOM_FITTED_CLOSURES_H
 #include "osl_compat.h"
 #include "texel_guard.h"
+#include "visibility.h"
 
 #define LOOM_FITTED_PANELS 2
 #define LOOM_FITTED_TILES 4
@@ -60,6 +64,20 @@ LOOM_FN void fitted_closure_weights(color k_rd, float k_rs, color k_td, float k_
   w_translucent_ns = k_td * b_ns + color(k_ts * l);
   w_glossy = k_rs * m_g * max(lut_g, 0.0) * vis_v;
   w_hair = k_ts * m_h * max(lut_h, 0.0);
+}
+
+/// Image coordinate s of the horizon strip's tile for w's azimuth at the repeat's su, and the
+/// weight f of the tile's second sine: horizon_sine(w, h) = mix(h_k, h_k+1, f) with (h_k, h_k+1)
+/// read there.
+LOOM_FN void horizon_strip_coords(vector w, float su, float width, LOOM_OUT(float) s,
+                                  LOOM_OUT(float) f) {
+  float phi = atan2(w[1], w[0]);
+  if (phi < 0.0)
+    phi += 2.0 * LOOM_M_PI;
+  float x = phi / (2.0 * LOOM_M_PI) * LOOM_HORIZON_DIRS;
+  float k = min(floor(x), LOOM_HORIZON_DIRS - 1.0);
+  f = clamp(x - k, 0.0, 1.0);
+  s = (k * (width + 2.0) + 1.0 + su * width) / (LOOM_HORIZON_DIRS * (width + 2.0));
 }
 
 #endif

@@ -31,13 +31,20 @@ LOOM_FN float horizon_sine(vector w, float h[LOOM_HORIZON_DIRS]) {
   return mix(h[k], h[k1], clamp(f, 0.0, 1.0));
 }
 
+/// V(w) in [0, 1] for unit w in the tangent frame, given the horizon sine s at w's azimuth
+/// (horizon_sine): the soft ramp.
+LOOM_FN float horizon_ramp(vector w, float s) {
+  if (w[2] <= 0.0)
+    return 1.0;
+  float x = clamp((w[2] - (s - LOOM_HORIZON_SOFTNESS)) / (2.0 * LOOM_HORIZON_SOFTNESS), 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
 /// V(w) in [0, 1] for unit w in the tangent frame.
 LOOM_FN float horizon_visibility(vector w, float h[LOOM_HORIZON_DIRS]) {
   if (w[2] <= 0.0)
     return 1.0;
-  float s = horizon_sine(w, h);
-  float x = clamp((w[2] - (s - LOOM_HORIZON_SOFTNESS)) / (2.0 * LOOM_HORIZON_SOFTNESS), 0.0, 1.0);
-  return x * x * (3.0 - 2.0 * x);
+  return horizon_ramp(w, horizon_sine(w, h));
 }
 
 /// Cosine-weighted mean visibility of the upper hemisphere (the fraction of a uniform sky that a
