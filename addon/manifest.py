@@ -86,7 +86,7 @@ def fitted_problem(textures: dict) -> str | None:
     not."""
     if FITTED_TEXTURE not in textures:
         return None
-    K = osl_source.required_constants(("LOOM_FITTED_TILES",))  # and its horizon strip
+    K = osl_source.required_constants(("LOOM_FITTED_TILES", "LOOM_HORIZON_DIRS"))
     try:
         w, h = (int(v) for v in textures["ply_frame"]["size"])
         got = [int(v) for v in textures[FITTED_TEXTURE]["size"]]
@@ -95,7 +95,6 @@ def fitted_problem(textures: dict) -> str | None:
     want = [int(K["LOOM_FITTED_TILES"]) * (w + 2), h]
     if got != want:
         return f"fitted closures are {got}, the shaders expect {want}: re-bake the atlas"
-    K = osl_source.required_constants(("LOOM_HORIZON_DIRS",))
     want = [int(K["LOOM_HORIZON_DIRS"]) * (w + 2), h]
     got = list(textures.get(HORIZON_STRIP, {}).get("size", []))
     if got != want:

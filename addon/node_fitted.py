@@ -5,9 +5,9 @@ at the view and the view-side visibility V(V), in place of the mapping's per-sam
 
 from __future__ import annotations
 
-from .manifest import FITTED_TEXTURE, HORIZON_STRIP
 import math
 
+from .manifest import FITTED_TEXTURE, HORIZON_STRIP
 from .node_texel_guard import texel_guard, texel_guard_horizons
 from .node_visibility import horizon_ramp
 from .nodes_expr import F, V, atan2, clamp, floor, max_, min_, mix, select, vec

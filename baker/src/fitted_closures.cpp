@@ -6,8 +6,6 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "loom/closure_lut.h"
@@ -190,41 +188,21 @@ Image fit_texel_closures(const Atlas& a, const FittedClosureOptions& o,
     if (v.z > 0) views.push_back(v);
   const std::vector<vec3> lights = sphere_grid(o.sphere_n);
   const double dw = sphere_grid_dw(o.sphere_n);
-  // Texels that share everything the fit reads are fitted once (the fit is a pure function of
-  // those values): a weave's crossings may repeat texel for texel, though the yarns' own
-  // variation mostly keeps them apart (gray wool twill `final`: 63,093 distinct of 65,536).
-  std::vector<SurfacePoint> points;
-  std::vector<int> cls(size_t(W) * H);
-  {
-    std::unordered_map<std::string, int> seen;
-    for (int iy = 0; iy < H; ++iy)
-      for (int ix = 0; ix < W; ++ix) {
-        const SurfacePoint p = guard_surface_point(texel_surface(a, ix, iy));
-        const float v[] = {p.t.x, p.t.y, p.t.z, p.n_p.x, p.n_p.y, p.n_p.z, p.gap, p.blend,
-                           p.roughness, p.thickness, p.kind, p.horizon[0], p.horizon[1],
-                           p.horizon[2], p.horizon[3], p.horizon[4], p.horizon[5], p.horizon[6],
-                           p.horizon[7]};
-        const std::string key(reinterpret_cast<const char*>(v), sizeof v);
-        const auto [it, added] = seen.try_emplace(key, int(points.size()));
-        if (added) points.push_back(p);
-        cls[size_t(iy) * W + ix] = it->second;
-      }
-  }
-  std::vector<std::array<SideFit, 2>> fits(points.size());
-  std::atomic<size_t> done{0};
-  tbb::parallel_for(size_t(0), points.size(), [&](size_t i) {
-    for (int back = 0; back < 2; ++back)
-      fits[i][back] = fit_side(a, points[i], back == 0, views, lights, dw, o.irls_iterations);
-    const size_t d = ++done;
-    if (progress && d % 256 == 0) progress(double(d) / points.size());
-  });
-  for (int iy = 0; iy < H; ++iy)
-    for (int ix = 0; ix < W; ++ix)
+  // Progress after d of the H rows, reported each quarter only (a line each in the bake's
+  // --progress output), as the average fit does.
+  std::atomic<int> done{0};
+  tbb::parallel_for(0, H, [&](int iy) {
+    for (int ix = 0; ix < W; ++ix) {
+      const SurfacePoint p = guard_surface_point(texel_surface(a, ix, iy));
       for (int back = 0; back < 2; ++back) {
-        const SideFit& f = fits[cls[size_t(iy) * W + ix]][back];
+        const SideFit f = fit_side(a, p, back == 0, views, lights, dw, o.irls_iterations);
         put_tiled(img, LOOM_FITTED_PANELS * back, W, ix, iy, f.fd);
         put_tiled(img, 1 + LOOM_FITTED_PANELS * back, W, ix, iy, f.fs);
       }
+    }
+    const int d = ++done;
+    if (progress && 4 * d / H != 4 * (d - 1) / H) progress(double(d) / H);
+  });
   if (progress) progress(1.0);
   return img;
 }
