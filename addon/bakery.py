@@ -309,7 +309,8 @@ class BakeStatus:
             return 1.0
         if self.state != "baking":
             return 0.0
-        order = ("ply maps", "horizon", "closure lut", "write", "average")
+        order = ("ply maps", "horizon", "closure lut", "write", "fitted closures", "swatch",
+                 "average")
         if self.stage in order:
             at = (order.index(self.stage) + max(0.0, min(1.0, self.fraction))) / len(order)
             self.peak = max(self.peak, at)

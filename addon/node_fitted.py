@@ -15,7 +15,7 @@ from .nodes_expr import F, V, atan2, clamp, floor, max_, min_, mix, select, vec
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
 TRANSCRIBED_FROM = {
-    "include/loom/fitted_closures.h": "e8ca7ea1b27fe19c",
+    "include/loom/fitted_closures.h": "c5145bdf468e993a",
 }
 
 REQUIRED_CONSTANTS = ("LOOM_FITTED_PANELS", "LOOM_FITTED_TILES", "LOOM_FITTED_MAX_WEIGHT",
@@ -104,8 +104,9 @@ def horizon_strip_coords(w: V, su: F, width: int, K):
 
 def strip_visibility(b, image, uv: V, V_: V, back: F, interpolation: str, width: int, K) -> F:
     """V(V) from the horizon strip, 1 on a back face (loom_cloth_surface.osl, fitted closures):
-    horizon_ramp(V, mix(h_k, h_k+1, f)) with the two sines read at V's azimuth, each guarded as
-    texel_guard_horizon."""
+    fitted_closures.h's horizon_strip_visibility(V, h_k, h_k+1, f) = horizon_ramp(V, mix(h_k,
+    h_k+1, f)) with the two sines read at V's azimuth, each guarded as texel_guard_horizon (the
+    three channels in one node)."""
     with b.block("fitted_closures.h, visibility.h: V(V) from the horizon strip"):
         su = uv.x - floor(uv.x)
         s, f = horizon_strip_coords(V_, su, width, K)

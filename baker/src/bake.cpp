@@ -199,10 +199,10 @@ void bake_fitted_closures_stage(const BakeContext& ctx, json& manifest) {
   const Image img = fit_texel_closures(a, fitted_closure_options(ctx.spec.quality),
                                        [&](double x) { ctx.progress("fitted closures", x); });
   ctx.out.write_table(
-      img, "fitted_closures", {"a_np | g | h", "a_ns | ax | r1", "b_np | ay | r2", "b_ns | 0 | l"},
-      fmt::format("per-texel closures fitted to the model (fitted_closures.h), per unit colour "
-                  "term: {} tiles side by side, (a_np, a_ns, b_np, b_ns), (g, ax, ay, 0), (h, r1, "
-                  "r2, l) for the front, then the same for the back; each tile the maps' width "
+      img, "fitted_closures", {"a_np | m_g", "a_ns | m_h", "b_np | l", "b_ns | 0"},
+      fmt::format("per-texel closure weights fitted to the model (fitted_closures.h), per unit "
+                  "colour term: {} tiles side by side, (a_np, a_ns, b_np, b_ns) and (m_g, m_h, "
+                  "l, 0) for the front, then the same for the back; each tile the maps' width "
                   "plus a column either side repeating the opposite edge",
                   LOOM_FITTED_TILES),
       false, "periodic");
@@ -272,9 +272,11 @@ BakeResult bake_atlas(FabricSpec spec, const fs::path& dir_in, const BakeOptions
     }
     json manifest =
         manifest_of(ctx, bake_key, repeat, out.hashed_textures(), std::move(raywave));
+    // The fitted closures hold no colour, so they come first: the swatch's colour solve then
+    // sees the closures that render.
+    if (spec.closures == ClosureSource::Fitted) bake_fitted_closures_stage(ctx, manifest);
     if (spec.tier == Tier::Surface && spec.colour_reading == ColourReading::Swatch)
       bake_surface_swatch_stage(ctx, manifest);
-    if (spec.closures == ClosureSource::Fitted) bake_fitted_closures_stage(ctx, manifest);
     bake_average_stage(ctx, manifest);
     res.reused = out.publish(manifest, bake_key, opt.force);
   }

@@ -118,6 +118,18 @@ void sample_fitted_closures(const Atlas& a, float u, float v, int back, float fd
   for (int c = 0; c < 4; ++c) fd[c] = fitted_weight_guard(fd[c]), fs[c] = fitted_weight_guard(fs[c]);
 }
 
+/// V(V) as the shaders read it with fitted closures: from the horizon strip (fitted_closures.h),
+/// not the horizon maps (the same where the atlas is as baked; not where a map was edited).
+float strip_view_visibility(const Atlas& a, float u, float v, vec3 V) {
+  const Image& img = a.map("horizon_strip");
+  const float width = float(img.width / LOOM_HORIZON_DIRS - 2);
+  u = std::isfinite(u) ? u - std::floor(u) : 0.0f;
+  float s, f, h[4];
+  horizon_strip_coords(V, u, width, s, f);
+  bilinear(img, s, v, h);
+  return horizon_strip_visibility(V, h[0], h[1], f);
+}
+
 std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi, vec3 wo,
                                Evaluator e, Backend backend) {
   const SurfacePoint p = guard_surface_point(p_in);
@@ -141,7 +153,8 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
   }
   if (!(V.z > 0) || L.z == 0) return {0, 0, 0};
   const vec3 Nc = surface_glossy_normal(t);
-  float vis_v = front ? horizon_visibility(V, hor) : 1.0f;
+  const bool fitted = has_fitted_closures(a);
+  float vis_v = !front ? 1.0f : fitted ? strip_view_visibility(a, p.u, p.v, V) : horizon_visibility(V, hor);
   float lx, ly, lz;
   surface_lut_coords(V, t, lx, ly, lz);
   float refl[4], trans[4];  // the closure LUT's panels (g, ax, ay, 0) and (h, r1, r2, l)
@@ -150,7 +163,7 @@ std::array<float, 3> eval_bsdf(const Atlas& a, const SurfacePoint& p_in, vec3 wi
                      1, trans);
   float w_glossy, w_hair;
   color w_dnp, w_dns, w_tnp, w_tns;
-  if (has_fitted_closures(a)) {  // per-texel factors fitted at bake time (fitted_closures.h)
+  if (fitted) {  // per-texel factors fitted at bake time (fitted_closures.h)
     float fd[4], fs[4];
     sample_fitted_closures(a, p.u, p.v, front ? 0 : 1, fd, fs);
     fitted_closure_weights(p.k_rd, p.k_rs, p.k_td, p.k_ts, fd[0], fd[1], fd[2], fd[3], fs[0],

@@ -521,7 +521,9 @@ SpecResult parse_spec(const json& doc, const std::string& quality_override) {
                                    : Quality::Preview;
     const auto reading = m.choice("colour_reading", "ply_albedo", {"swatch", "ply_albedo"});
     s.colour_reading = reading == "swatch" ? ColourReading::Swatch : ColourReading::PlyAlbedo;
-    const auto closures = m.choice("closures", "mapped", {"mapped", "fitted"});
+    // Fitted where the tier has them (surface): closer to the model and cheaper to render.
+    const auto closures = m.choice("closures", s.tier == Tier::Surface ? "fitted" : "mapped",
+                                   {"mapped", "fitted"});
     s.closures = closures == "fitted" ? ClosureSource::Fitted : ClosureSource::Mapped;
     if (s.closures == ClosureSource::Fitted && s.tier != Tier::Surface)
       errors.push_back(fmt::format("$.model.closures: \"fitted\" is the surface tier's only (not "

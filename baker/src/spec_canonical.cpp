@@ -111,7 +111,8 @@ json canonical_spec(const FabricSpec& s) {
                 {"beam_waist_um", s.wave.beam_waist_um},
                 {"noise", s.wave.noise},
                 {"speckle_width_um", s.wave.speckle_width_um}}}};
-  // "mapped", the default, is left out: atlases baked before model.closures keep their keys.
+  // "mapped" is left out: atlases baked before model.closures existed (all mapped) keep their
+  // keys, and a surface spec that asks for the mapping finds them.
   if (s.closures == ClosureSource::Fitted) c["model"]["closures"] = "fitted";
   if (!s.yarn_types.empty()) {
     json& t = c["yarn_types"] = json::object();

@@ -23,9 +23,14 @@ nlohmann::json surface_spec(const std::string& preset, const char* closures) {
   return d;
 }
 
+/// A preset's surface tier with fitted closures: the default (draft_atlas).
 const std::filesystem::path& fitted_atlas(const std::string& preset) {
-  return loom::test::shared_atlas(preset + "-surface-fitted.draft",
-                                  surface_spec(preset, "fitted"));
+  return loom::test::draft_atlas(preset, "surface");
+}
+
+const std::filesystem::path& mapped_atlas(const std::string& preset) {
+  return loom::test::shared_atlas(preset + "-surface-mapped.draft",
+                                  surface_spec(preset, "mapped"));
 }
 
 }  // namespace
@@ -105,7 +110,7 @@ TEST(FittedClosures, CloserToTheModelThanThePerSampleMapping) {
   // are in docs/surface.md.)
   for (const char* preset : {"plain"}) {
     const loom::Atlas fitted = loom::load_atlas(fitted_atlas(preset));
-    const loom::Atlas mapped = loom::load_atlas(loom::test::draft_atlas(preset, "surface"));
+    const loom::Atlas mapped = loom::load_atlas(mapped_atlas(preset));
     ASSERT_TRUE(loom::has_fitted_closures(fitted));
     ASSERT_FALSE(loom::has_fitted_closures(mapped));
     const loom::MappingError f = loom::mapping_error(fitted, 36, 16, 48),

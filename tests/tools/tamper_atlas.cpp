@@ -7,7 +7,8 @@
 //
 // `range`: finite values outside the baker's ranges (albedos above 1 and below 0, gap coverage
 // and yarn kind out of range, h beyond +-1, horizon sines beyond +-1, zero and degenerate ply
-// frames, a normal below the cloth, a vertical tangent). `nonfinite`: NaN and +-Inf in
+// frames, a normal below the cloth, a vertical tangent, fitted closure factors below 0 and above
+// their maximum). `nonfinite`: NaN and +-Inf in
 // the same channels. Every fifth texel of each map is changed (a fixed pattern: the result is
 // deterministic), cycling through the map's variants below; the other texels keep their values.
 // Only maps the atlas has are changed; --only changes that one map alone (to find which map a
@@ -62,6 +63,9 @@ std::map<std::string, Variants> range_variants() {
       // horizon sines
       {"horizon_0", {{3.0f, -4.0f, 1.5f, -1.5f}}},
       {"horizon_1", {{-2.0f, 2.0f, kKeep, 6.0f}}},
+      // The fitted closures' factors (0 to LOOM_FITTED_MAX_WEIGHT) and the horizon strip's sines.
+      {"fitted_closures", {{-3.0f, 80.0f, 1e4f, -0.5f}, {60.0f, -1.0f, kKeep, 55.0f}}},
+      {"horizon_strip", {{3.0f, -4.0f, kKeep, kKeep}, {-2.0f, 2.0f, kKeep, kKeep}}},
   };
 }
 
@@ -76,6 +80,8 @@ std::map<std::string, Variants> nonfinite_variants() {
       {"spec_params", {{kNaN, kNaN, kNaN, kNaN}, {kInf, kInf, -kInf, kInf}}},
       {"horizon_0", {{kNaN, kInf, -kInf, kNaN}}},
       {"horizon_1", {{kInf, kNaN, kNaN, -kInf}}},
+      {"fitted_closures", {{kNaN, kInf, -kInf, kNaN}, {kInf, kNaN, 0.5f, kInf}}},
+      {"horizon_strip", {{kNaN, kInf, kKeep, kKeep}, {-kInf, kNaN, kKeep, kKeep}}},
   };
 }
 

@@ -129,8 +129,9 @@ struct FabricSpec {
   /// changes to the swatch once the surface tier is solved for it too (issue 35): until then
   /// the two tiers would differ the more.
   ColourReading colour_reading = ColourReading::PlyAlbedo;
-  /// model.closures; "fitted" is the surface tier's only (the canonical spec omits "mapped", the
-  /// default, so atlases baked before it keep their keys).
+  /// model.closures: parse_spec's default is "fitted" on the surface tier (its only tier) and
+  /// "mapped" elsewhere; the canonical spec omits "mapped", so atlases baked with the mapping
+  /// before model.closures existed keep their keys.
   ClosureSource closures = ClosureSource::Mapped;
   double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
   double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]

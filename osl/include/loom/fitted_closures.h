@@ -80,4 +80,10 @@ LOOM_FN void horizon_strip_coords(vector w, float su, float width, LOOM_OUT(floa
   s = (k * (width + 2.0) + 1.0 + su * width) / (LOOM_HORIZON_DIRS * (width + 2.0));
 }
 
+/// V(V) from the horizon strip's two sines (h_k, h_k+1) read at horizon_strip_coords's s, mixed
+/// by its f: horizon_visibility of the horizon maps (guarded as texel_guard_horizon).
+LOOM_FN float horizon_strip_visibility(vector w, float h_k, float h_k1, float f) {
+  return horizon_ramp(w, mix(texel_guard_horizon(h_k), texel_guard_horizon(h_k1), f));
+}
+
 #endif
