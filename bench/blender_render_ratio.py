@@ -9,15 +9,18 @@ Principled render (0.05-0.18 s at 64 px and 16 samples) and made the whole-rende
 between runs. The whole-render times and ratio (at --samples) are reported beside it, and each
 material's fixed cost (whole time minus --samples times the time per sample).
 
-A swatch seen by an orthographic camera, black world, one sun: from the camera's side
-(--light front, the default) or from behind the cloth towards the camera, a little off its
-axis (--light back: what the transmission, double-layer and diffraction closures cost). Each
+--scene swatch (the default): a swatch seen by an orthographic camera, black world, one sun:
+from the camera's side (--light front, the default) or from behind the cloth towards the
+camera, a little off its axis (--light back: what the transmission, double-layer and
+diffraction closures cost). --scene drape: a curtain in folds seen in perspective, a small
+light behind it, a dim world (bench/swatch_scene.py; --light and --ortho-scale are the
+swatch's: refused here). Each
 material is rendered --repeats times, alternating, and the medians are reported with their
 ratios to the Principled medians. Node mode (the Blender here has no OSL).
 
     blender -b --factory-startup --python-exit-code 1 --python bench/blender_render_ratio.py -- \
         --material NAME=ATLAS [--material NAME=ATLAS ...] [--samples 16] [--res 128] \
-        [--timing-samples 64] [--repeats 3] [--light front|back] \
+        [--timing-samples 64] [--repeats 3] [--scene swatch|drape] [--light front|back] \
         [--reference NAME [--noise-floor]] [--images DIR] [--json OUT]
 
 --reference NAME adds each image's relative RMSE against NAME's image (RGB, last repeat):
@@ -39,9 +42,12 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
                                 "blender"))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import loom_testlib as lt  # noqa: E402
-from swatch_scene import principled_sheen, swatch_scene  # noqa: E402
+from swatch_scene import drape_scene, principled_sheen, swatch_scene  # noqa: E402
 
 import bpy  # noqa: E402
+
+
+ORTHO_SCALE = 0.05  # the swatch camera's default
 
 
 def extra_args(p):
@@ -52,7 +58,9 @@ def extra_args(p):
                    help="second sample count, for the time per sample (default 4 x --samples)")
     p.add_argument("--res", type=int, default=128)
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--light", choices=("front", "back"), default="front")
+    p.add_argument("--scene", choices=("swatch", "drape"), default="swatch")
+    p.add_argument("--light", choices=("front", "back"), default=None,
+                   help="the swatch's sun: front (default) or back")
     p.add_argument("--reference", default=None, help="material the images are compared with")
     p.add_argument("--noise-floor", action="store_true")
     p.add_argument("--images", default=None, help="directory for each material's render")
@@ -61,7 +69,7 @@ def extra_args(p):
                    help="the Loom materials' Average: auto (driven by the camera, "
                         "scene_needs.average_drive) or a number in [0, 1] (1: the "
                         "repeat-averaged closures)")
-    p.add_argument("--ortho-scale", type=float, default=0.05,
+    p.add_argument("--ortho-scale", type=float, default=ORTHO_SCALE,
                    help="metres the camera sees across (0.05: weave resolved; 1 and more: "
                         "many repeats a pixel)")
 
@@ -103,7 +111,13 @@ def main():
     if args.timing_samples <= args.samples:
         raise SystemExit(f"--timing-samples: {args.timing_samples} (allowed: more than --samples, "
                          f"{args.samples})")
-    scene, plane = swatch_scene(args.res, args.ortho_scale, args.light)
+    if args.scene == "drape":
+        if args.light is not None or args.ortho_scale != ORTHO_SCALE:
+            raise SystemExit("--light, --ortho-scale: the swatch scene's (--scene swatch); the "
+                             "drape has its own camera and light")
+        scene, plane = drape_scene(args.res)
+    else:
+        scene, plane = swatch_scene(args.res, args.ortho_scale, args.light or "front")
     scene.cycles.samples = args.samples
 
     materials = {"principled_sheen": principled_sheen()}
@@ -176,7 +190,7 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"samples": args.samples, "timing_samples": args.timing_samples,
-                       "res": args.res, "light": args.light,
+                       "res": args.res, "scene": args.scene, "light": args.light,
                        "reference": args.reference, "noise_floor": floor, "rows": rows}, f,
                       indent=1)
 
