@@ -159,7 +159,10 @@ def spec_for_needs(canonical: dict, needs: SceneNeeds) -> dict:
         needs.tier = "surface"
         needs.reasons.append("per-thread yarn types (stripes, checks): the ray-wave tier does not "
                              "take them yet, surface tier")
-    spec.setdefault("model", {})["tier"] = needs.tier
+    model = spec.setdefault("model", {})
+    model["tier"] = needs.tier
+    if needs.tier != "surface" and model.get("closures") == "fitted":
+        model.pop("closures")  # fitted closures are the surface tier's; the others map
     comp = spec.setdefault("components", {})
     wave = spec.setdefault("wave", {})
     comp["transmission"] = bool(comp.get("transmission", True)) and needs.transmission

@@ -111,9 +111,10 @@ json canonical_spec(const FabricSpec& s) {
                 {"beam_waist_um", s.wave.beam_waist_um},
                 {"noise", s.wave.noise},
                 {"speckle_width_um", s.wave.speckle_width_um}}}};
-  // "mapped" is left out: atlases baked before model.closures existed (all mapped) keep their
-  // keys, and a surface spec that asks for the mapping finds them.
-  if (s.closures == ClosureSource::Fitted) c["model"]["closures"] = "fitted";
+  // The surface tier's choice is always written: its default is "fitted", so a canonical spec
+  // without it would read back as fitted. The other tiers map only, and leave it out.
+  if (s.tier == Tier::Surface)
+    c["model"]["closures"] = s.closures == ClosureSource::Fitted ? "fitted" : "mapped";
   if (!s.yarn_types.empty()) {
     json& t = c["yarn_types"] = json::object();
     for (const auto& y : s.yarn_types) t[y.name] = {{"color", {{y.color_space, y.color_input}}}};

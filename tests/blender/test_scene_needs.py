@@ -125,6 +125,18 @@ def main():
     n = needs(cloth)
     assert n["tier"] == "surface" and n["transmission"] and not n["diffraction"], n
 
+    # The spec a need derives: a surface spec's fitted closures (its default) do not follow it
+    # to the ray-wave tier, which refuses them; its mapped ones may; back on the surface tier
+    # the choice stays.
+    from loom import scene_needs
+
+    for closures, tier, want in (("fitted", "raywave", None), ("mapped", "raywave", "mapped"),
+                                 ("mapped", "surface", "mapped"), ("fitted", "surface", "fitted")):
+        canon = {"model": {"tier": "surface", "closures": closures}, "components": {},
+                 "wave": {}, "warp": {}, "weft": {}}
+        derived = scene_needs.spec_for_needs(canon, scene_needs.SceneNeeds(tier=tier))
+        assert derived["model"].get("closures") == want, (closures, tier, derived["model"])
+
     # The panel's operator: from the material's atlas (the plain weave of the fixture, physical
     # scale) to the report shown in the panel.
     if args.atlas:

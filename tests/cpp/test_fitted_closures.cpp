@@ -151,14 +151,26 @@ TEST(FittedClosures, OnlyTheSurfaceTierFitsAndTheChoiceIsNamed) {
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.errors.at(0).find("closures"), std::string::npos) << r.errors.at(0);
   EXPECT_NE(r.errors.at(0).find("fitted"), std::string::npos) << r.errors.at(0);
-  // The canonical spec names the choice only when it is not the default (older atlases keep
-  // their keys).
-  r = loom::parse_spec(surface_spec("plain", "mapped"));
-  ASSERT_TRUE(r.ok());
-  EXPECT_FALSE(loom::canonical_spec(r.spec)["model"].contains("closures"));
-  r = loom::parse_spec(surface_spec("plain", "fitted"));
+  // The canonical spec names the surface tier's choice and reads back to it (the default,
+  // "fitted", included); the ray-wave tier's, the mapping, is left out.
+  for (const char* closures : {"mapped", "fitted"}) {
+    r = loom::parse_spec(surface_spec("plain", closures));
+    ASSERT_TRUE(r.ok());
+    const nlohmann::json c = loom::canonical_spec(r.spec);
+    EXPECT_EQ(c["model"]["closures"], closures);
+    const loom::SpecResult back = loom::parse_spec(c);
+    ASSERT_TRUE(back.ok());
+    EXPECT_EQ(loom::canonical_spec(back.spec), c) << closures;
+  }
+  d = loom::preset("plain");
+  d["model"]["tier"] = "surface";
+  r = loom::parse_spec(d);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(loom::canonical_spec(r.spec)["model"]["closures"], "fitted");
+  d["model"]["tier"] = "raywave";
+  r = loom::parse_spec(d);
+  ASSERT_TRUE(r.ok());
+  EXPECT_FALSE(loom::canonical_spec(r.spec)["model"].contains("closures"));
 }
 
 TEST(FittedClosures, AnAtlasWhoseTilesDoNotFollowItsMapsIsRefused) {

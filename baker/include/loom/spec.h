@@ -130,8 +130,8 @@ struct FabricSpec {
   /// the two tiers would differ the more.
   ColourReading colour_reading = ColourReading::PlyAlbedo;
   /// model.closures: parse_spec's default is "fitted" on the surface tier (its only tier) and
-  /// "mapped" elsewhere; the canonical spec omits "mapped", so atlases baked with the mapping
-  /// before model.closures existed keep their keys.
+  /// "mapped" elsewhere; the canonical spec names it on the surface tier only (where it must:
+  /// without it a mapped spec would read back as fitted).
   ClosureSource closures = ClosureSource::Mapped;
   double optical_thickness = 4.0;  ///< SpongeCake T, [0.01, 100]
   double diffuse_blend = 0.5;      ///< w of Eq. 3/6, [0, 1]
