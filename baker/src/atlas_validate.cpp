@@ -164,36 +164,49 @@ void check_average_fields(const json& m, const json& tex, std::vector<std::strin
   f.number(a, "gap_mean", "average.gap_mean", 0.0, 0.999);
 }
 
-std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifest_out,
-                                              std::map<std::string, AtlasFile>* node_files) {
-  std::vector<std::string> errors;
+/// The atlas's manifest.json, read and parsed, of this schema and with textures; or the one
+/// error that makes `dir` no atlas (in `error`).
+std::optional<json> read_manifest(const fs::path& dir, std::string& error) {
   fs::path mp = dir / "manifest.json";
+  auto fail = [&](std::string e) {
+    error = std::move(e);
+    return std::nullopt;
+  };
   AtlasFile manifest_file;
   try {
     manifest_file = read_atlas_file(dir, "manifest.json");
   } catch (const AtlasFileError& e) {
     if (e.kind == AtlasFileError::Kind::SymbolicLink)
-      return {fmt::format("{}: is a symbolic link; an atlas's files must be regular files in its "
-                          "directory",
-                          mp.string())};
+      return fail(fmt::format("{}: is a symbolic link; an atlas's files must be regular files in "
+                              "its directory",
+                              mp.string()));
     if (e.kind == AtlasFileError::Kind::Missing)
-      return {fmt::format("{}: missing or unreadable (not an atlas)", mp.string())};
-    return {fmt::format("{} (not an atlas)", e.what())};
+      return fail(fmt::format("{}: missing or unreadable (not an atlas)", mp.string()));
+    return fail(fmt::format("{} (not an atlas)", e.what()));
   }
   json m;
   try {
     m = json::parse(manifest_file.bytes);
   } catch (const std::exception& e) {
-    return {fmt::format("{}: not valid JSON: {}", mp.string(), e.what())};
+    return fail(fmt::format("{}: not valid JSON: {}", mp.string(), e.what()));
   }
   if (!m.is_object() || !m.contains("schema") || !m["schema"].is_string())
-    return {fmt::format("{}: no \"schema\" field", mp.string())};
+    return fail(fmt::format("{}: no \"schema\" field", mp.string()));
   if (m["schema"] != kAtlasSchema)
-    return {fmt::format("{}: schema {} is not supported; this baker reads \"{}\" (re-bake the "
-                        "atlas)",
-                        mp.string(), m["schema"].dump(), kAtlasSchema)};
+    return fail(fmt::format("{}: schema {} is not supported; this baker reads \"{}\" (re-bake "
+                            "the atlas)",
+                            mp.string(), m["schema"].dump(), kAtlasSchema));
   if (!m.contains("textures") || !m["textures"].is_object() || m["textures"].empty())
-    return {fmt::format("{}: no \"textures\"", mp.string())};
+    return fail(fmt::format("{}: no \"textures\"", mp.string()));
+  return m;
+}
+
+/// Each texture the manifest lists: both files plain names inside `dir`, regular files whose
+/// SHA-256 matches and whose header matches the size and channels listed; the node files kept
+/// in `node_files` if given.
+void check_texture_files(const fs::path& dir, json& m,
+                         std::map<std::string, AtlasFile>* node_files,
+                         std::vector<std::string>& errors) {
   for (auto& [name, t] : m["textures"].items()) {
     if (!t.is_object()) {
       errors.push_back(fmt::format("textures.{}: expected an object", name));
@@ -251,9 +264,13 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
       if (node_files && std::string(key) == "node_file") (*node_files)[name] = std::move(file);
     }
   }
+}
+
+/// The surface contract of the evaluators and shaders: the maps, their sizes, the closure LUT's
+/// layout and the fitted closures' tiles.
+void check_surface_contract(const json& tex, std::vector<std::string>& errors) {
   // The contract the evaluators rely on: every map, four channels, one size for all maps, and
   // the closure LUT's layout.
-  const auto& tex = m["textures"];
   std::optional<json> map_size;
   for (const char* name : kSurfaceMaps) {
     if (!tex.contains(name)) {
@@ -296,9 +313,11 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
                                      want.dump(), tiles));
     }
   }
-  if (m.contains("tier") && !m["tier"].is_string())
-    errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));
-  check_average_fields(m, tex, errors);
+}
+
+/// A ray-wave atlas's tables: each listed file a texture of the atlas, each layout this
+/// baker's.
+void check_raywave_tables(const json& m, const json& tex, std::vector<std::string>& errors) {
   // Ray-wave atlases: every yarn's tables are textures of this atlas.
   if (m.contains("tier") && m["tier"] == "raywave") {
     if (!m.contains("raywave") || !m["raywave"].is_object() || !m["raywave"].contains("yarns") ||
@@ -384,6 +403,22 @@ std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifes
       check_raywave_fields(m, errors);
     }
   }
+}
+
+std::vector<std::string> validate_atlas_files(const fs::path& dir, json* manifest_out,
+                                              std::map<std::string, AtlasFile>* node_files) {
+  std::string error;
+  std::optional<json> read = read_manifest(dir, error);
+  if (!read) return {error};
+  json& m = *read;
+  std::vector<std::string> errors;
+  check_texture_files(dir, m, node_files, errors);
+  const auto& tex = m["textures"];
+  check_surface_contract(tex, errors);
+  if (m.contains("tier") && !m["tier"].is_string())
+    errors.push_back(fmt::format("tier: expected a string, not {}", m["tier"].dump()));
+  check_average_fields(m, tex, errors);
+  check_raywave_tables(m, tex, errors);
   if (manifest_out) *manifest_out = m;
   return errors;
 }

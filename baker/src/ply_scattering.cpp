@@ -220,6 +220,44 @@ bool PlyGeometry::intersect_exit(int segment, double z_offset, const Vec3d& o, c
 
 // ---------------------------------------------------------------- simulation
 
+namespace {
+
+/// Inside the fiber that `entry` entered, from o along d: bounces off its wall (Fresnel picks
+/// internal reflection) until the ray refracts out, adding the path length to `len` and each
+/// wall event to `events`; o and d are then where and how it leaves. False when the path
+/// reaches max_events first (truncated).
+bool trace_inside_fiber(const PlyGeometry& g, const PlyGeometry::Hit& entry, double ior,
+                        int max_events, RayRng& rng, Vec3d& o, Vec3d& d, double& len,
+                        int& events) {
+  for (;;) {
+    PlyGeometry::Hit ex;
+    if (!g.intersect_exit(entry.segment, entry.z_offset, o, d, ex)) {
+      ex.t = 0;  // numerically tangent: leave where we are
+      ex.normal = entry.normal;
+    }
+    len += ex.t;
+    Vec3d q = o + d * ex.t;
+    double ci = dot(d, ex.normal), cto;  // > 0: leaving through the wall
+    if (ci <= 0) {  // rounding put us outside already
+      o = q;
+      return true;
+    }
+    double Fi = fresnel_dielectric(ci, 1 / ior, cto);
+    events += 1;
+    if (events >= max_events) return false;
+    if (rng.next() < Fi) {  // internal reflection
+      o = q;
+      d = reflected(d, ex.normal);
+      continue;
+    }
+    o = q;
+    d = refracted(d, ex.normal * -1.0, ci, cto, 1 / ior);
+    return true;
+  }
+}
+
+}  // namespace
+
 PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSettings& s,
                                double theta_i, double h, uint64_t slice_index) {
   const int T = s.theta_o_count, P = s.phi_o_count, K = int(s.sigmas.size());
@@ -314,38 +352,8 @@ PlySimSlice simulate_ply_slice(const PlyGeometry& g, double ior, const PlySimSet
           continue;
         }
         pa.pure_refl = false;
-        // Inside the fiber: bounce until the ray refracts out (or is truncated).
         Vec3d o = pos, d = refr_d;
-        bool truncated = false;
-        for (;;) {
-          PlyGeometry::Hit ex;
-          if (!g.intersect_exit(hit.segment, hit.z_offset, o, d, ex)) {
-            ex.t = 0;  // numerically tangent: leave where we are
-            ex.normal = hit.normal;
-          }
-          pa.len += ex.t;
-          Vec3d q = o + d * ex.t;
-          double ci = dot(d, ex.normal), cto;  // > 0: leaving through the wall
-          if (ci <= 0) {  // rounding put us outside already
-            o = q;
-            break;
-          }
-          double Fi = fresnel_dielectric(ci, 1 / ior, cto);
-          pa.events += 1;
-          if (pa.events >= s.max_events) {
-            truncated = true;
-            break;
-          }
-          if (rng.next() < Fi) {  // internal reflection
-            o = q;
-            d = reflected(d, ex.normal);
-            continue;
-          }
-          o = q;
-          d = refracted(d, ex.normal * -1.0, ci, cto, 1 / ior);
-          break;
-        }
-        if (truncated) {
+        if (!trace_inside_fiber(g, hit, ior, s.max_events, rng, o, d, pa.len, pa.events)) {
           for (int k = 0; k < K; ++k) trunc_e[size_t(k)] += pa.weight * std::exp(-sig_um[size_t(k)] * pa.len);
           break;
         }

@@ -112,7 +112,9 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
                 << "\n";
     }
     EXPECT_LT(de[1], 2.0) << preset;
-    if (control) EXPECT_GT(de[0], 5.0) << preset << ": the ply-albedo reading should be far off";
+    if (control) {
+      EXPECT_GT(de[0], 5.0) << preset << ": the ply-albedo reading should be far off";
+    }
   }
 }
 

@@ -1,5 +1,7 @@
 // Helpers shared by the C++ tests that bake atlases and run loom-bake.
 #pragma once
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -81,9 +83,19 @@ inline const std::filesystem::path& shared_atlas(const std::string& name,
   const loom::SpecResult r = loom::parse_spec(spec, quality);
   if (!r.ok()) throw std::runtime_error("shared_atlas " + name + ": " + r.errors.at(0));
   std::filesystem::path dir;
+  // Test processes running at once that share an atlas of the cache bake it once: the others
+  // wait on its lock file and then find it baked (bake_atlas reuses a valid atlas of its key).
+  struct Lock {
+    int fd = -1;
+    ~Lock() {
+      if (fd >= 0) ::close(fd);  // (closing releases the flock)
+    }
+  } lock;
   if (const char* cache = std::getenv("LOOM_TEST_ATLAS_CACHE"); cache && *cache) {
     std::filesystem::create_directories(cache);
     dir = std::filesystem::path(cache) / name;
+    lock.fd = ::open((dir.string() + ".lock").c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
+    if (lock.fd >= 0) ::flock(lock.fd, LOCK_EX);
   } else {
     dir = scratch(name);
   }
