@@ -41,11 +41,10 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 status=0
 phase "C++ tests under ASan + UBSan"
-# Four at a time on two cores: the tests also wait (on the lock of a shared atlas another test
-# is baking, on loom-bake processes and files), and the others fill those waits (the whole
-# label, one run each on 2026-12-07: 677 s two at a time, 607 s three at a time; with the
-# shared atlases' locks, 683 s three and four: see docs/testing.md).
-ctest --test-dir "$here/build-san" -L cpp --output-on-failure -j 4 || status=1
+# Three at a time on two cores: the tests also wait (on a shared atlas another test is baking,
+# on loom-bake processes and files), and a third fills those waits (the whole label: 607 s
+# against 677 s two at a time, one run each on 2026-12-07).
+ctest --test-dir "$here/build-san" -L cpp --output-on-failure -j 3 || status=1
 phase "bounded fuzzing (libFuzzer, ASan + UBSan)"
 ctest --test-dir "$here/build-fuzz" -L fuzz --output-on-failure -j 2 || status=1
 wait "$provision" ||
