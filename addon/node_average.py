@@ -12,7 +12,7 @@ import math
 
 from .manifest import AVERAGE_TEXTURE
 from .node_bsdf import ggx_glossy
-from .nodes_expr import F, V, atan2, clamp, length, max_, select, sqrt, vec
+from .nodes_expr import F, V, atan2, clamp, length, madd, max_, select, sqrt, vec
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
@@ -38,8 +38,10 @@ def average_closures_uv(V_: V, back, panel: float, K):
     phi = select(phi < 0.0, phi + 2.0 * math.pi, phi)
     s = (0.5 + phi * (n_p / (2.0 * math.pi))) * (1.0 / (n_p + 1.0))
     c = clamp(V_.z / max_(length(V_), 1e-8), 0.0, 1.0)
-    row0 = (back * panels + panel) * n_t
-    tv = (row0 + 0.5 + c * (n_t - 1.0)) * (1.0 / (2.0 * panels * n_t))
+    # regrouped, so that the four panels share all but one node: with k = 1 / (2 PANELS nt),
+    # tv = (c (nt - 1) k + back PANELS nt k) + (panel nt + 0.5) k
+    k = 1.0 / (2.0 * panels * n_t)
+    tv = madd(c, (n_t - 1.0) * k, back * (panels * n_t * k)) + (panel * n_t + 0.5) * k
     return s, tv
 
 

@@ -10,7 +10,7 @@ import math
 from .manifest import FITTED_TEXTURE, HORIZON_STRIP
 from .node_texel_guard import texel_guard, texel_guard_horizons
 from .node_visibility import horizon_ramp
-from .nodes_expr import F, V, atan2, clamp, floor, max_, min_, mix, select, vec
+from .nodes_expr import F, V, atan2, clamp, floor, fract, max_, min_, mix, select, vec
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/
 # test_transcription.py checks it).
@@ -67,7 +67,7 @@ def fitted_yarn_weights(b, image, uv: V, back: F, interpolation: str, width: int
     weights (w_dnp, w_dns, w_tnp, w_tns, w_glossy, w_hair). ``optics``: the guarded (k_rd, k_rs,
     k_td, k_ts); lut_g, lut_h: the closure LUT's weights at this view."""
     with b.block("fitted_closures.h: fitted_closures_s, the two panels, fitted_weight_guard"):
-        su = uv.x - floor(uv.x)  # the repeat's u in [0, 1); v wraps by the image's REPEAT
+        su = fract(uv.x)  # the repeat's u in [0, 1); v wraps by the image's REPEAT
         reads = []
         for panel in range(int(K["LOOM_FITTED_PANELS"])):
             node = b.new("ShaderNodeTexImage", interpolation=interpolation, extension="REPEAT",
@@ -108,7 +108,7 @@ def strip_visibility(b, image, uv: V, V_: V, back: F, interpolation: str, width:
     h_k+1, f)) with the two sines read at V's azimuth, each guarded as texel_guard_horizon (the
     three channels in one node)."""
     with b.block("fitted_closures.h, visibility.h: V(V) from the horizon strip"):
-        su = uv.x - floor(uv.x)
+        su = fract(uv.x)
         s, f = horizon_strip_coords(V_, su, width, K)
         node = b.new("ShaderNodeTexImage", interpolation=interpolation, extension="REPEAT",
                      label=HORIZON_STRIP)

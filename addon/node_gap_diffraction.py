@@ -9,7 +9,7 @@ from .node_wave import (diffraction_cell_row, diffraction_gap_offset, diffractio
                         diffraction_lobe_closure, diffraction_lobe_weight, diffraction_sample_uv,
                         diffraction_split, diffraction_stratum, diffraction_table_s,
                         diffraction_tile_pick)
-from .nodes_expr import dot, floor, normalize, select, sqrt, vec
+from .nodes_expr import dot, fract, normalize, select, sqrt, vec
 
 
 def build_gap_diffraction(b, table, geo_p, uv, V_, frame, back, gap, dif, albedo_file, K):
@@ -37,9 +37,9 @@ def build_gap_diffraction(b, table, geo_p, uv, V_, frame, back, gap, dif, albedo
         rnd = b.vector_socket(rnd_nodes[0].outputs["Color"])
         r3 = b.float_socket(rnd_nodes[1].outputs["Value"])
         nx, ny, size = dif["tiles_x"], dif["tiles_y"], dif["size"]
-        ox = diffraction_gap_offset(uv.x - floor(uv.x), dif["weft_yarns"],
+        ox = diffraction_gap_offset(fract(uv.x), dif["weft_yarns"],
                                     dif["gap_fraction"][0])
-        oy = diffraction_gap_offset(uv.y - floor(uv.y), dif["warp_yarns"],
+        oy = diffraction_gap_offset(fract(uv.y), dif["warp_yarns"],
                                     dif["gap_fraction"][1])
         tx = b.label(diffraction_tile_pick(ox, nx, rnd.x), "tile x")
         ty = b.label(diffraction_tile_pick(oy, ny, rnd.y), "tile y")

@@ -50,8 +50,9 @@ from .node_fitted import FITTED_TEXTURE, REQUIRED_CONSTANTS as FITTED_CONSTANTS
 from .node_fitted import HORIZON_STRIP, fitted_yarn_weights, strip_visibility
 from .node_texel_guard import texel_guard_geometry, texel_guard_optics
 from .node_visibility import horizon_ambient_visibility, horizon_vectors, horizon_visibility
-from .nodes_expr import (Builder, F, V, atan2, clamp, cross, dot, fabs, floor, length, max_, min_,
-                         mix, normalize, select, sync_sockets, vec)
+from .nodes_builder import Builder, sync_sockets
+from .nodes_expr import (F, V, atan2, clamp, cross, dot, floor, length, madd, math_op, max_, min_,
+                         mix, normalize, select, vec)
 
 GROUP_PREFIX = "Loom Surface"
 
@@ -67,7 +68,7 @@ REQUIRED_CONSTANTS = ("LOOM_HORIZON_DIRS", "LOOM_HORIZON_SOFTNESS", "LOOM_CLOSUR
 # fails when a source's code changes: read the diff, update the transcription below, run
 # tests/blender/test_parity.py, then record the new fingerprints here.
 TRANSCRIBED_FROM = {
-    "include/loom/closure_mapping.h": "678a0546758dcd7e",
+    "include/loom/closure_mapping.h": "fc6c97297790ce3c",
     "loom_cloth_surface.osl": "56783062a1a2a335",
 }
 
@@ -89,25 +90,22 @@ def surface_glossy_normal(t: V) -> V:
     return select(ln < 1e-6, (0.0, 0.0, 1.0), n / ln)
 
 
+def fold_unit(a):
+    """closure_mapping.h: fold_unit(a) = |a wrapped into [-1, 1]|: Blender's pingpong(a, 1),
+    one Math node (|fract((a - 1) / 2) 2 - 1|, as the header writes it)."""
+    return math_op("PINGPONG", a, 1.0)
+
+
 def surface_lut_coords(V_: V, t_in: V, K):
     """closure_mapping.h: surface_lut_coords(V, t, x, y, z).
 
         t = t_in; if (t.z < 0) t = -t
-        tt = (t.x, t.y, 0); lt = length(tt); tt = lt < 1e-6 ? (1,0,0) : tt / lt
-        bb = (-tt.y, tt.x, 0); vt = V . tt; vb = |V . bb|
-        phi = |vt| + vb > 1e-9 ? atan2(vb, vt) : 0
-        x = clamp(phi / pi, 0, 1);  y = clamp(V.z, 0, 1)
+        x = fold_unit((atan2(V.y, V.x) - atan2(t.y, t.x)) (1 / pi))
+        y = clamp(V.z, 0, 1)
         z = clamp(t.z / LUT_TZ_MAX, 0, 1) (LUT_SLICES - 1)
     """
     t = select(t_in.z < 0.0, -t_in, t_in)
-    tt = vec(t.x, t.y, 0.0)
-    lt = length(tt)
-    tt = select(lt < 1e-6, (1.0, 0.0, 0.0), tt / lt)
-    bb = vec(-tt.y, tt.x, 0.0)
-    vt = dot(V_, tt)
-    vb = fabs(dot(V_, bb))
-    phi = select(fabs(vt) + vb > 1e-9, atan2(vb, vt), 0.0)
-    x = clamp(phi / math.pi, 0.0, 1.0)
+    x = fold_unit((atan2(V_.y, V_.x) - atan2(t.y, t.x)) * (1.0 / math.pi))
     y = clamp(V_.z, 0.0, 1.0)
     z = clamp(t.z / K["LOOM_LUT_TZ_MAX"], 0.0, 1.0) * (K["LOOM_LUT_SLICES"] - 1.0)
     return x, y, z
@@ -133,20 +131,23 @@ def surface_lut_uvs(kind, xs: dict, y, slices: dict, K) -> dict:
         lut_u = (panel n + 0.5 + clamp(x, 0, 1) (n - 1)) / (LUT_PANELS n)
         lut_v = (row0 + 0.5 + clamp(y, 0, 1) (n - 1)) / (2 rows)
 
-    What the four look-ups share is built once: (lut_u, lut_v) = ((clamp(x), clamp(y)) (n - 1)
-    + (panel n + 0.5, row0 + 0.5)) / (LUT_PANELS n, 2 rows), in Vector Math nodes."""
+    Regrouped so that the four look-ups share what they can, in as few nodes as that allows:
+    (lut_u, lut_v) = (clamp(x), clamp(y)) ((n - 1) / (LUT_PANELS n), (n - 1) / (2 rows))
+    + (panel n + 0.5, 0) / (LUT_PANELS n) + (0, slice n + kind_rows + 0.5) / (2 rows)."""
     n = K["LOOM_CLOSURE_LUT_SIZE"]
     rows = n * K["LOOM_LUT_SLICES"]
-    inv = (1.0 / (K["LOOM_LUT_PANELS"] * n), 1.0 / (2.0 * rows), 0.0)
-    row_base = (kind > 1.5) * rows + 0.5
+    su, sv = 1.0 / (K["LOOM_LUT_PANELS"] * n), 1.0 / (2.0 * rows)
+    # row0 + 0.5 over 2 rows: slice n sv + (kind > 1.5) rows sv + 0.5 sv
+    row_base = madd(kind > 1.5, rows * sv, 0.5 * sv)
     cy = clamp(y, 0.0, 1.0)
-    xy = {panel: vec(clamp(x, 0.0, 1.0), cy, 0.0) * (n - 1.0, n - 1.0, 0.0)
+    xy = {panel: madd(vec(clamp(x, 0.0, 1.0), cy, 0.0), ((n - 1.0) * su, (n - 1.0) * sv, 0.0),
+                      ((panel * n + 0.5) * su, 0.0, 0.0))
           for panel, x in xs.items()}
     uvs = {}
     for which, slice_ in slices.items():
-        row = slice_ * n + row_base
+        row = vec(0.0, madd(slice_, n * sv, row_base), 0.0)
         for panel in xs:
-            uvs[panel, which] = (xy[panel] + vec(panel * n + 0.5, row, 0.0)) * inv
+            uvs[panel, which] = xy[panel] + row
     return uvs
 
 

@@ -60,8 +60,8 @@ from .node_raywave_lobes import (asg_frame, asg_integral_from_lut, asg_integral_
                                  raywave_residual_translucent_weight, raywave_residual_uv)
 from .node_gap_diffraction import build_gap_diffraction
 from .node_wave import diffraction_gap_sampled, noise_lobe_uv, noise_pick
-from .nodes_expr import (Builder, cos, cross, dot, max_, normalize, select, sin, sqrt,
-                         sync_sockets, vec)
+from .nodes_builder import Builder, sync_sockets
+from .nodes_expr import cos, cross, dot, max_, normalize, select, sin, sqrt, vec
 
 GROUP_PREFIX = "Loom Ray-wave"
 SHADER = "loom_cloth_raywave.osl"

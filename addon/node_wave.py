@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 
 from .node_raywave_lobes import asg_lobe_refraction_frame, asg_refraction_alpha
-from .nodes_expr import (asin, atan2, clamp, fabs, floor, length, max_, min_, normalize, select,
-                         sqrt, vec)
+from .nodes_expr import (asin, atan2, clamp, fabs, floor, fract, length, max_, min_, normalize,
+                         select, sqrt, vec)
 
 # What this module transcribes (see node_mode.TRANSCRIBED_FROM; tests/blender/test_transcription.py
 # checks it).
@@ -70,7 +70,7 @@ def diffraction_tile_pick(o, n, r):
 def diffraction_stratum(r, k, step):
     """diffraction_sampling.h: diffraction_stratum(r, k, step) = x - floor(x), x = r + k step."""
     x = r + k * step
-    return x - floor(x)
+    return fract(x)
 
 
 def diffraction_split(r):
@@ -195,7 +195,7 @@ def noise_tile_uv(w, phi_shift, instance, instances):
     theta = asin(clamp(n.z, -1.0, 1.0))
     phi = atan2(n.y, n.x)
     x = (phi + math.pi) * (1.0 / (2.0 * math.pi)) + phi_shift
-    u = x - floor(x)
+    u = fract(x)
     t = clamp((theta + 0.5 * math.pi) * (1.0 / math.pi), 0.0, 1.0)
     return u, (instance + t) * (1.0 / max(int(instances), 1))
 

@@ -16,261 +16,17 @@ division by zero gives 0 (Math DIVIDE, Vector Math SCALE with a safe inverse).
 Branches (``if`` in the headers) become ``select(cond, a, b)``: both sides are evaluated and a
 Mix node picks one with a 0/1 factor; the safe arithmetic above keeps the unused side finite.
 
-Nodes made inside ``with builder.block("title"):`` go in a frame with that title (the header
-function mirrored); ``builder.layout()`` places them deterministically.
+Cycles' SVM runs every node at every shading point, so no value is computed twice: an operation
+asked again on the same inputs returns the node made the first time (``Builder.op_node``), a
+clamp of what is already inside its range and ``x + 0``, ``x * 1`` make no node.
+
+The nodes are made by a ``nodes_builder.Builder``: inside ``with builder.block("title"):`` they go
+in a frame with that title (the header function mirrored); ``builder.layout()`` places them.
 """
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 import math
-from contextlib import contextmanager
-
-# ------------------------------------------------------------------------------------ builder
-
-
-_SOCKET = {"F": "NodeSocketFloat", "V": "NodeSocketVector"}
-
-
-class Builder:
-    """Creates and links nodes in ``tree`` (a ShaderNodeTree, material or group)."""
-
-    HIDE = {"ShaderNodeMath", "ShaderNodeVectorMath", "ShaderNodeSeparateXYZ",
-            "ShaderNodeCombineXYZ", "ShaderNodeMix", "ShaderNodeClamp"}
-
-    def __init__(self, tree, functions: dict | None = None):
-        self.tree = tree
-        # The function groups of this build (call()), shared by all the builders of one build.
-        self.functions: dict = {} if functions is None else functions
-        self._separate: dict[tuple[str, str], object] = {}
-        self._blocks: list[tuple[object | None, list]] = [(None, [])]
-        self._order: dict[str, int] = {}
-        # node name -> names of the nodes feeding it (kept here: NodeSocket.links scans every
-        # link of the tree, which makes a layout of a large group quadratic)
-        self._inputs: dict[str, set[str]] = {}
-
-    # -- structure
-    @contextmanager
-    def block(self, title: str):
-        """Group the nodes made in this context in a frame labelled ``title``."""
-        frame = self.tree.nodes.new("NodeFrame")
-        frame.label = title
-        frame.name = "Frame " + title[:48]
-        frame.label_size = 14
-        frame.shrink = True
-        self._blocks.append((frame, []))
-        try:
-            yield frame
-        finally:
-            self._blocks.append((None, []))
-
-    def new(self, idname: str, **props):
-        node = self.tree.nodes.new(idname)
-        for k, v in props.items():
-            setattr(node, k, v)
-        frame, members = self._blocks[-1]
-        if frame is not None:
-            node.parent = frame
-        if idname in self.HIDE:
-            node.hide = True
-        members.append(node)
-        self._order[node.name] = len(self._order)
-        return node
-
-    def link(self, value, socket) -> None:
-        """Feed ``value`` (an expression, a number or a 3-tuple) into an input socket."""
-        if isinstance(value, Expr):
-            self.tree.links.new(value.socket, socket)
-            self._inputs.setdefault(socket.node.name, set()).add(value.socket.node.name)
-        elif isinstance(value, (tuple, list)):
-            dv = socket.default_value
-            if len(dv) == 4 and len(value) == 3:  # colour sockets are RGBA
-                value = (*value, 1.0)
-            socket.default_value = value
-        else:
-            socket.default_value = float(value)
-
-    def connect(self, from_socket, to_socket) -> None:
-        """Link two sockets (shader sockets, group sockets), recorded for the layout."""
-        self.tree.links.new(from_socket, to_socket)
-        self._inputs.setdefault(to_socket.node.name, set()).add(from_socket.node.name)
-
-    def add_shaders(self, shaders):
-        """The sum of shader output sockets as a chain of Add Shader nodes, in order (Cycles'
-        SVM compiles the closures of such a chain in that order); returns the last output."""
-        total = None
-        for out in shaders:
-            if total is None:
-                total = out
-                continue
-            add = self.new("ShaderNodeAddShader")
-            self.connect(total, add.inputs[0])
-            self.connect(out, add.inputs[1])
-            total = add.outputs["Shader"]
-        return total
-
-    def call(self, fn, *args, **static):
-        """``fn(*args, **static)`` computed in a node group of its own, used here through a
-        Group node; returns what fn returns, its expressions now the Group node's outputs.
-        Expressions among ``args`` (also in lists) become the group's inputs, numbers and tuples
-        constants inside it (constant results stay Python constants, so folding goes on);
-        ``static`` (the header constants K) is passed as is. One group per function and
-        constants, built once per build (``functions``; an earlier build's is rebuilt in place).
-        Why: Blender's tree updates make building quadratic in a tree's size, while Cycles
-        inlines groups into the same shader."""
-        import bpy  # here only: the rest of this module does not need Blender
-
-        flat: list[Expr] = []
-
-        def describe(a):
-            if isinstance(a, Expr):
-                flat.append(a)
-                return "V" if isinstance(a, V) else "F"
-            if isinstance(a, (list, tuple)) and any(isinstance(x, Expr) for x in a):
-                return [describe(x) for x in a]
-            if isinstance(a, bool) or _is_num(a) or _is_vec_const(a):
-                return ("const", a)
-            raise TypeError(f"call({fn.__name__}): argument {a!r} is neither an expression "
-                            f"nor a constant")
-
-        desc = [describe(a) for a in args]
-        if not flat:
-            return fn(*args, **static)
-        key = (fn.__module__, fn.__qualname__, repr(desc))
-        entry = self.functions.get(key)
-        if entry is None:
-            digest = hashlib.sha1(repr(key).encode()).hexdigest()[:6]
-            name = f"Loom fn {fn.__name__} {digest}"
-            group = bpy.data.node_groups.get(name)
-            if group is None or group.bl_idname != "ShaderNodeTree":
-                group = bpy.data.node_groups.new(name, "ShaderNodeTree")
-            # Rebuilt in place, its sockets kept where they are the same: other materials use
-            # this group too, and their Group nodes lose their links when a socket goes.
-            group.nodes.clear()
-            group.description = f"Loom: {fn.__name__} ({fn.__module__}), as in the headers"
-            params = list(inspect.signature(fn).parameters)
-            names = []
-            for k, (a, d) in enumerate(zip(args, desc)):
-                base = params[k] if k < len(params) else f"arg{k}"
-                if isinstance(d, list):
-                    names += [(f"{base}[{j}]", x) for j, x in enumerate(d)]
-                elif isinstance(d, str):
-                    names.append((base, d))
-            sync_sockets(group, "INPUT", [(n, _SOCKET[kind]) for n, kind in names])
-            sub = Builder(group, self.functions)
-            gin = sub.new("NodeGroupInput")
-            inputs = iter(range(len(flat)))
-
-            def rebuild(a, d):
-                if isinstance(d, list):
-                    return [rebuild(x, dx) for x, dx in zip(a, d)]
-                if isinstance(d, str):
-                    sock = gin.outputs[next(inputs)]
-                    return sub.vector_socket(sock) if d == "V" else sub.float_socket(sock)
-                return a
-
-            result = fn(*[rebuild(a, d) for a, d in zip(args, desc)], **static)
-            items = list(result) if isinstance(result, tuple) else [result]
-            outs = []  # per result: the output socket's index and kind, or None (a constant)
-            wanted = []
-            for j, item in enumerate(items):
-                if isinstance(item, Expr):
-                    kind = "V" if isinstance(item, V) else "F"
-                    wanted.append((f"out{j}", _SOCKET[kind]))
-                    outs.append((sum(o is not None for o in outs), kind))
-                else:
-                    outs.append(None)
-            sync_sockets(group, "OUTPUT", wanted)
-            gout = sub.new("NodeGroupOutput")
-            for item, o in zip(items, outs):
-                if o is not None:
-                    sub.connect(item.socket, gout.inputs[o[0]])
-            sub.layout()
-            entry = (group, outs, items, isinstance(result, tuple))
-            self.functions[key] = entry
-        group, outs, items, is_tuple = entry
-        node = self.new("ShaderNodeGroup", label=fn.__name__)
-        node.node_tree = group
-        for k, a in enumerate(flat):
-            self.link(a, node.inputs[k])
-        got = [item if o is None else
-               (self.vector_socket if o[1] == "V" else self.float_socket)(node.outputs[o[0]])
-               for item, o in zip(items, outs)]
-        return tuple(got) if is_tuple else got[0]
-
-    def label(self, expr: Expr, text: str) -> Expr:
-        """Name a quantity: the label of the node that computes it (shown on hidden nodes)."""
-        if isinstance(expr, Expr):
-            expr.socket.node.label = text
-        return expr
-
-    # -- leaves
-    def float_socket(self, socket) -> F:
-        return F(self, socket)
-
-    def vector_socket(self, socket) -> V:
-        return V(self, socket)
-
-    def separate(self, v: V) -> tuple[F, F, F]:
-        key = (v.socket.node.name, v.socket.identifier)
-        node = self._separate.get(key)
-        if node is None:
-            node = self.new("ShaderNodeSeparateXYZ")
-            self.link(v, node.inputs[0])
-            self._separate[key] = node
-        return tuple(F(self, node.outputs[i]) for i in range(3))
-
-    # -- layout
-    def layout(self, x0: float = 0.0, y0: float = 0.0, col_w: float = 170.0,
-               gap: float = 90.0) -> None:
-        """Place nodes: blocks left to right; inside a block, columns by dependency depth.
-        The locations are written at once with foreach_set: setting ``location`` node by node
-        updates the whole tree each time, quadratic in its size (seconds for a ray-wave group)."""
-        placed: dict[str, tuple[float, float]] = {}
-        x = x0
-        for frame, members in self._blocks:
-            if not members:
-                continue
-            names = {n.name for n in members}
-            depth: dict[str, int] = {}
-            for n in members:  # creation order is a topological order
-                d = 0
-                for src in self._inputs.get(n.name, ()):
-                    if src in names:
-                        d = max(d, depth.get(src, 0) + 1)
-                depth[n.name] = d
-            cols: dict[int, list] = {}
-            for n in members:
-                cols.setdefault(depth[n.name], []).append(n)
-            width = 0.0
-            for d in sorted(cols):
-                y = y0
-                cw = col_w
-                for n in cols[d]:
-                    placed[n.name] = (x + width, y)
-                    y -= _node_height(n)
-                    cw = max(cw, n.width + 30.0)
-                width += cw
-            x += width + gap
-        nodes = self.tree.nodes
-        flat = [0.0] * (2 * len(nodes))
-        nodes.foreach_get("location", flat)
-        for i, n in enumerate(nodes):
-            if n.name in placed:
-                flat[2 * i], flat[2 * i + 1] = placed[n.name]
-        nodes.foreach_set("location", flat)
-
-
-def _node_height(node) -> float:
-    if node.hide:
-        return 42.0
-    if node.bl_idname == "ShaderNodeTexImage":
-        return 290.0
-    shown = sum(1 for s in node.inputs if s.enabled and not s.hide)
-    shown += sum(1 for s in node.outputs if s.enabled and not s.hide)
-    return 60.0 + 24.0 * shown
-
 
 # ------------------------------------------------------------------------------ expressions
 
@@ -278,24 +34,24 @@ def _node_height(node) -> float:
 class Expr:
     __slots__ = ("b", "socket")
 
-    def __init__(self, b: Builder, socket):
+    def __init__(self, b, socket):  # b: the nodes_builder.Builder that made the socket
         self.b = b
         self.socket = socket
 
 
-def _builder(*args) -> Builder | None:
+def _builder(*args):  # -> the nodes_builder.Builder of the first expression, or None
     for a in args:
         if isinstance(a, Expr):
             return a.b
     return None
 
 
-def _is_num(x) -> bool:
+def is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _is_vec_const(x) -> bool:
-    return isinstance(x, (tuple, list)) and len(x) == 3 and all(_is_num(c) for c in x)
+def is_vector_constant(x) -> bool:
+    return isinstance(x, (tuple, list)) and len(x) == 3 and all(is_number(c) for c in x)
 
 
 _PY_MATH = {
@@ -312,7 +68,10 @@ _PY_MATH = {
     "ABSOLUTE": abs,
     "LOGARITHM": lambda a, b: math.log(a) / math.log(b) if a > 0 and b > 0 else 0.0,
     "FLOOR": math.floor,
+    "FRACT": lambda a: a - math.floor(a),
     "ARCTAN2": math.atan2,
+    "PINGPONG": lambda a, b: abs((((a - b) / (2 * b)) - math.floor((a - b) / (2 * b))) * 2 * b - b)
+    if b != 0 else 0.0,
     "SINE": math.sin,
     "COSINE": math.cos,
     "ARCSINE": lambda a: math.asin(a) if -1.0 <= a <= 1.0 else 0.0,
@@ -325,31 +84,34 @@ def math_op(op: str, *args) -> F | float:
     b = _builder(*args)
     if b is None:
         return float(_PY_MATH[op](*args))
-    node = b.new("ShaderNodeMath", operation=op)
-    for i, a in enumerate(args):
-        b.link(a, node.inputs[i])
+    if len(args) == 2 and is_number(args[1]) and (
+            (op in ("ADD", "SUBTRACT") and args[1] == 0) or
+            (op in ("MULTIPLY", "DIVIDE") and args[1] == 1)):
+        return args[0]  # x + 0, x - 0, x 1, x / 1: x itself, no node
+    if op in ("ADD", "MULTIPLY") and is_number(args[0]) and args[0] == (0 if op == "ADD" else 1):
+        return args[1]
+    node = b.op_node("ShaderNodeMath", {"operation": op}, list(enumerate(args)))
+    if op in ("LESS_THAN", "GREATER_THAN"):
+        b.ranges[node.name] = (0.0, 1.0)
+    elif op == "MULTIPLY" and len(args) == 2:
+        r = [_range(a) for a in args]
+        k = [a for a in args if is_number(a)]
+        if k and k[0] >= 0 and (r[0] or r[1]):
+            lo, hi = r[0] or r[1]
+            b.ranges[node.name] = (lo * k[0], hi * k[0])
     return F(b, node.outputs[0])
+
+
+def _range(x):
+    """The range an expression is known to lie in (Builder.ranges), or None."""
+    return x.b.ranges.get(x.socket.node.name) if isinstance(x, F) else None
 
 
 def _vec_math(op: str, *args, scale=None, out: str = "Vector"):
     b = _builder(*args, scale)
-    node = b.new("ShaderNodeVectorMath", operation=op)
-    for i, a in enumerate(args):
-        b.link(a, node.inputs[i])
-    if scale is not None:
-        b.link(scale, node.inputs[3])
+    inputs = list(enumerate(args)) + ([] if scale is None else [(3, scale)])
+    node = b.op_node("ShaderNodeVectorMath", {"operation": op}, inputs)
     return V(b, node.outputs[0]) if out == "Vector" else F(b, node.outputs[1])
-
-
-def sync_sockets(group, in_out: str, wanted: list) -> None:
-    """Give ``group`` the (name, type) sockets ``wanted`` on side ``in_out``, kept if it has them
-    (other trees' Group nodes of it lose their links when a socket is removed)."""
-    have = [s for s in group.interface.items_tree if s.item_type == "SOCKET" and s.in_out == in_out]
-    if [(s.name, s.socket_type) for s in have] != wanted:
-        for s in have:
-            group.interface.remove(s)
-        for n, kind in wanted:
-            group.interface.new_socket(n, in_out=in_out, socket_type=kind)
 
 
 class F(Expr):
@@ -370,12 +132,12 @@ class F(Expr):
         return math_op("SUBTRACT", o, self)
 
     def __mul__(self, o):
-        if isinstance(o, V) or _is_vec_const(o):
+        if isinstance(o, V) or is_vector_constant(o):
             return scale(o, self)
         return math_op("MULTIPLY", self, o)
 
     def __rmul__(self, o):
-        if _is_vec_const(o):
+        if is_vector_constant(o):
             return scale(o, self)
         return math_op("MULTIPLY", o, self)
 
@@ -428,7 +190,7 @@ class V(Expr):
         return _vec_math("SUBTRACT", o, self)
 
     def __mul__(self, o):
-        if isinstance(o, V) or _is_vec_const(o):
+        if isinstance(o, V) or is_vector_constant(o):
             return _vec_math("MULTIPLY", self, o)  # component-wise, like OSL colour * colour
         return scale(self, o)
 
@@ -436,7 +198,7 @@ class V(Expr):
         return self.__mul__(o)
 
     def __truediv__(self, o):
-        if isinstance(o, V) or _is_vec_const(o):
+        if isinstance(o, V) or is_vector_constant(o):
             return _vec_math("DIVIDE", self, o)
         return scale(self, 1.0 / o)  # Math DIVIDE: 1/0 -> 0, so v/0 -> 0
 
@@ -449,9 +211,24 @@ class V(Expr):
 
 def scale(v, s):
     """v * s for a vector v and a scalar s."""
-    if _is_vec_const(v) and _is_num(s):
+    if is_vector_constant(v) and is_number(s):
         return tuple(c * s for c in v)
     return _vec_math("SCALE", v, scale=s)
+
+
+def madd(a, b_, c):
+    """a b + c in one node: Math MULTIPLY_ADD for scalars, Vector Math MULTIPLY_ADD (component-wise)
+    when any operand is a vector."""
+    if any(isinstance(v, V) or is_vector_constant(v) for v in (a, b_, c)):
+        if _builder(a, b_, c) is None:
+            return tuple(p * q + r for p, q, r in zip(*(v if is_vector_constant(v) else (v,) * 3
+                                                        for v in (a, b_, c))))
+        return _vec_math("MULTIPLY_ADD", a, b_, c)
+    b = _builder(a, b_, c)
+    if b is None:
+        return float(a * b_ + c)
+    node = b.op_node("ShaderNodeMath", {"operation": "MULTIPLY_ADD"}, list(enumerate((a, b_, c))))
+    return F(b, node.outputs[0])
 
 
 def vec(x, y, z):
@@ -459,14 +236,12 @@ def vec(x, y, z):
     b = _builder(x, y, z)
     if b is None:
         return (float(x), float(y), float(z))
-    node = b.new("ShaderNodeCombineXYZ")
-    for i, c in enumerate((x, y, z)):
-        b.link(c, node.inputs[i])
+    node = b.op_node("ShaderNodeCombineXYZ", {}, list(enumerate((x, y, z))))
     return V(b, node.outputs[0])
 
 
 def dot(a, b_):
-    if _is_vec_const(a) and _is_vec_const(b_):
+    if is_vector_constant(a) and is_vector_constant(b_):
         return sum(p * q for p, q in zip(a, b_))
     return _vec_math("DOT_PRODUCT", a, b_, out="Value")
 
@@ -498,6 +273,11 @@ def fabs(x):
 
 def floor(x):
     return math_op("FLOOR", x)
+
+
+def fract(x):
+    """x - floor(x), one Math node (FRACT)."""
+    return math_op("FRACT", x)
 
 
 def atan2(y, x):
@@ -549,9 +329,12 @@ def clamp(x, lo, hi):
     b = _builder(x, lo, hi)
     if b is None:
         return min(max(x, lo), hi)
-    node = b.new("ShaderNodeClamp", clamp_type="MINMAX")
-    for i, a in enumerate((x, lo, hi)):
-        b.link(a, node.inputs[i])
+    r = _range(x)
+    if r is not None and is_number(lo) and is_number(hi) and lo <= r[0] and r[1] <= hi:
+        return x  # already inside (a clamp, a comparison, a multiple of one): no node
+    node = b.op_node("ShaderNodeClamp", {"clamp_type": "MINMAX"}, list(enumerate((x, lo, hi))))
+    if is_number(lo) and is_number(hi):
+        b.ranges[node.name] = (float(lo), float(hi))
     return F(b, node.outputs[0])
 
 
@@ -561,16 +344,14 @@ def select(cond, if_true, if_false):
     b = _builder(cond, if_true, if_false)
     if b is None:
         return if_true if cond else if_false
-    vector = any(isinstance(v, V) or _is_vec_const(v) for v in (if_true, if_false))
-    node = b.new("ShaderNodeMix", data_type="VECTOR" if vector else "FLOAT",
-                 clamp_factor=True)
-    if vector:
-        node.factor_mode = "UNIFORM"
+    vector = any(isinstance(v, V) or is_vector_constant(v) for v in (if_true, if_false))
     kind = "Vector" if vector else "Float"
-    b.link(cond, _by_id(node.inputs, "Factor_Float"))
-    b.link(if_false, _by_id(node.inputs, "A_" + kind))
-    b.link(if_true, _by_id(node.inputs, "B_" + kind))
-    out = _by_id(node.outputs, "Result_" + kind)
+    props = {"data_type": kind.upper(), "clamp_factor": True}
+    if vector:
+        props["factor_mode"] = "UNIFORM"
+    node = b.op_node("ShaderNodeMix", props, [("Factor_Float", cond), ("A_" + kind, if_false),
+                                              ("B_" + kind, if_true)])
+    out = socket_by_id(node.outputs, "Result_" + kind)
     return V(b, out) if vector else F(b, out)
 
 
@@ -580,19 +361,27 @@ def mix(a, b_, t):
     b = _builder(a, b_, t)
     if b is None:
         return a * (1 - t) + b_ * t
-    vector = any(isinstance(v, V) or _is_vec_const(v) for v in (a, b_))
+    vector = any(isinstance(v, V) or is_vector_constant(v) for v in (a, b_))
     kind = "Vector" if vector else "Float"
-    node = b.new("ShaderNodeMix", data_type=kind.upper(), clamp_factor=False)
+    props = {"data_type": kind.upper(), "clamp_factor": False}
     if vector:
-        node.factor_mode = "UNIFORM"
-    b.link(t, _by_id(node.inputs, "Factor_Float"))
-    b.link(a, _by_id(node.inputs, "A_" + kind))
-    b.link(b_, _by_id(node.inputs, "B_" + kind))
-    out = _by_id(node.outputs, "Result_" + kind)
+        props["factor_mode"] = "UNIFORM"
+    node = b.op_node("ShaderNodeMix", props, [("Factor_Float", t), ("A_" + kind, a),
+                                              ("B_" + kind, b_)])
+    out = socket_by_id(node.outputs, "Result_" + kind)
     return V(b, out) if vector else F(b, out)
 
 
-def _by_id(sockets, identifier):
+def operand_key(v):
+    """What identifies an operand of op_node: the socket of an expression, else the constant."""
+    if isinstance(v, Expr):
+        return ("socket", v.socket.node.name, v.socket.identifier)
+    if isinstance(v, (tuple, list)):
+        return ("vector", tuple(float(c) for c in v))
+    return ("number", float(v))
+
+
+def socket_by_id(sockets, identifier):
     for s in sockets:
         if s.identifier == identifier:
             return s

@@ -260,3 +260,44 @@ def draw_material_panel(mat, obj) -> list:
                           scene=bpy.context.scene, preferences=bpy.context.preferences)
     bpy.types.MATERIAL_PT_loom.draw(SimpleNamespace(layout=FakeLayout(log)), ctx)
     return log
+
+
+# The operations node mode's expression builder makes (nodes_expr.op_node, Builder.call).
+OPERATIONS = ("ShaderNodeMath", "ShaderNodeVectorMath", "ShaderNodeCombineXYZ",
+              "ShaderNodeSeparateXYZ", "ShaderNodeClamp", "ShaderNodeMix", "ShaderNodeGroup")
+
+
+def repeated_operations(tree, seen_trees=None) -> list:
+    """Nodes of ``tree`` and of the groups it uses that compute what another node of the same
+    tree already computes: the same operation on the same links and constants (each one more
+    node that Cycles' SVM runs at every shading point). Returns "tree: node = node" strings."""
+    seen_trees = set() if seen_trees is None else seen_trees
+    if tree.name in seen_trees:
+        return []
+    seen_trees.add(tree.name)
+    links = {}
+    for link in tree.links:
+        links[(link.to_node.name, link.to_socket.identifier)] = (link.from_node.name,
+                                                                  link.from_socket.identifier)
+    first, repeats = {}, []
+    for n in tree.nodes:
+        if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None:
+            repeats += repeated_operations(n.node_tree, seen_trees)
+        if n.bl_idname not in OPERATIONS:
+            continue
+        props = tuple(getattr(n, p, None) for p in ("operation", "data_type", "clamp_type",
+                                                     "factor_mode", "clamp_factor"))
+        ins = []
+        for s in n.inputs:
+            if (n.name, s.identifier) in links:
+                ins.append(links[(n.name, s.identifier)])
+            elif hasattr(s, "default_value"):
+                v = s.default_value
+                ins.append(tuple(v) if hasattr(v, "__len__") else v)
+        key = (n.bl_idname, props, n.node_tree.name if n.bl_idname == "ShaderNodeGroup" else "",
+               tuple(ins))
+        if key in first:
+            repeats.append(f"{tree.name}: {n.name} = {first[key]}")
+        else:
+            first[key] = n.name
+    return repeats

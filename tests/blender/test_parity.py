@@ -191,6 +191,9 @@ def main():
     loom.api.assign(plane, atlas, mode="nodes", scale=REPEATS_PER_METER,
                     interpolation=args.interpolation, average=1.0 if args.average else 0.0)
     assert loom.api.last_assign()["mode"] == "NODES"
+    # Node mode computes each quantity once (nodes_expr.op_node): no node repeats another's work.
+    repeats = lt.repeated_operations(plane.active_material.node_tree)
+    assert not repeats, f"{len(repeats)} nodes repeat another's operation: {repeats[:5]}"
     control = lt.diffuse_material()
     print(f"loom-parity: scene and material built in {time.monotonic() - t0:.1f} s", flush=True)
 

@@ -2,6 +2,7 @@
 // computations: quadrature identities, closed-form limits, brute-force energy sums.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -165,4 +166,27 @@ TEST(Visibility, HorizonInterpolationAndRamp) {
   vec3 low = vec3(0.8f * float(std::cos(M_PI / 4)), 0.8f * float(std::sin(M_PI / 4)), 0.2f);
   EXPECT_FLOAT_EQ(horizon_visibility(normalize(low), hor), 0.0f);  // below 0.5 - 0.05
   EXPECT_FLOAT_EQ(horizon_visibility(vec3(0, 0, -1), hor), 1.0f);
+}
+
+TEST(ClosureMapping, LutCoordinatesAreTheViewsAzimuthAboutTheTangent) {
+  // x: the angle between V's and t's projections onto the cloth (t taken with t_z >= 0, the
+  // LUT's convention), over pi, computed here from their dot product; y = cos theta_V; z the
+  // slice coordinate of |t_z|. fold_unit against a wrap written out.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(-1, 1);
+  for (int k = 0; k < 2000; ++k) {
+    const vec3 V = normalize(vec3(U(rng), U(rng), 0.05f + std::fabs(U(rng))));
+    vec3 t = normalize(vec3(U(rng), U(rng), U(rng)));
+    float x, y, z;
+    surface_lut_coords(V, t, x, y, z);
+    if (t.z < 0) t = -t;
+    const double vl = std::hypot(V.x, V.y), tl = std::hypot(t.x, t.y);
+    const double c = (double(V.x) * t.x + double(V.y) * t.y) / (vl * tl);
+    EXPECT_NEAR(x, std::acos(std::clamp(c, -1.0, 1.0)) / M_PI, 2e-5) << k;
+    EXPECT_FLOAT_EQ(y, V.z);
+    EXPECT_NEAR(z, std::min(t.z / LOOM_LUT_TZ_MAX, 1.0) * (LOOM_LUT_SLICES - 1), 1e-5);
+    const float a = 4 * U(rng);
+    const float wrapped = a - 2 * std::round(a / 2);  // into [-1, 1]
+    EXPECT_NEAR(fold_unit(a), std::fabs(wrapped), 1e-6) << a;
+  }
 }

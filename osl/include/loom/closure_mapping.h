@@ -65,27 +65,22 @@ LOOM_FN vector surface_glossy_normal(vector t) {
   return n / l;
 }
 
+/// |a| after a is wrapped into [-1, 1] (period 2): Blender's pingpong(a, 1), one Math node.
+LOOM_FN float fold_unit(float a) {
+  float f = (a - 1.0) * 0.5;
+  return fabs((f - floor(f)) * 2.0 - 1.0);
+}
+
 /// LUT coordinates for view V and ply tangent t (tangent frame, V_z >= 0): x = folded azimuth of
-/// V about t's projection, over [0, pi], as [0, 1]; y = cos theta_V; z = slice coordinate of
-/// |t_z| in [0, LOOM_LUT_SLICES - 1].
+/// V about t's projection, over [0, pi], as [0, 1]: the azimuths' difference, wrapped (atan2 of
+/// a vertical t or V is 0); y = cos theta_V; z = slice coordinate of |t_z| in
+/// [0, LOOM_LUT_SLICES - 1].
 LOOM_FN void surface_lut_coords(vector V, vector t_in, LOOM_OUT(float) x, LOOM_OUT(float) y,
                                 LOOM_OUT(float) z) {
   vector t = t_in;
   if (t[2] < 0.0)
     t = -t;
-  vector tt = vector(t[0], t[1], 0.0);
-  float lt = length(tt);
-  if (lt < 1e-6)
-    tt = vector(1.0, 0.0, 0.0);
-  else
-    tt = tt / lt;
-  vector bb = vector(-tt[1], tt[0], 0.0);
-  float vt = dot(V, tt);
-  float vb = fabs(dot(V, bb));
-  float phi = 0.0;
-  if (fabs(vt) + vb > 1e-9)
-    phi = atan2(vb, vt);
-  x = clamp(phi / LOOM_M_PI, 0.0, 1.0);
+  x = fold_unit((atan2(V[1], V[0]) - atan2(t[1], t[0])) * (1.0 / LOOM_M_PI));
   y = clamp(V[2], 0.0, 1.0);
   z = clamp(t[2] / LOOM_LUT_TZ_MAX, 0.0, 1.0) * (LOOM_LUT_SLICES - 1);
 }
