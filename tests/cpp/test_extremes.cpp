@@ -37,7 +37,9 @@ const fs::path& baked(const std::string& tier) {
   if (it != dirs.end()) return it->second;
   auto d = loom::preset("twill");
   d["model"]["tier"] = tier;
-  return dirs.emplace(tier, loom::test::shared_atlas("twill-" + tier + ".draft", d)).first->second;
+  return dirs.emplace(tier, loom::test::shared_atlas("twill-" + tier + ".draft", d, "draft",
+                                                     loom::test::Baker::Fixture))
+      .first->second;
 }
 
 /// Every scalar a texel gives the shaders, by address (vec3 components one by one).
@@ -417,7 +419,9 @@ const fs::path& baked_white(const std::string& tier, bool extreme) {
     d[y]["transmission"] = 1.0;
     d[y]["roughness"] = 0.1;
   }
-  return dirs.emplace(key, loom::test::shared_atlas("twill-" + key + ".draft", d)).first->second;
+  return dirs.emplace(key, loom::test::shared_atlas("twill-" + key + ".draft", d, "draft",
+                                                    loom::test::Baker::Fixture))
+      .first->second;
 }
 
 /// n texels of yarn (not gap) at uniformly random atlas coordinates, from a fixed seed.

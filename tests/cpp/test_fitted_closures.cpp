@@ -29,8 +29,8 @@ const std::filesystem::path& fitted_atlas(const std::string& preset) {
 }
 
 const std::filesystem::path& mapped_atlas(const std::string& preset) {
-  return loom::test::shared_atlas(preset + "-surface-mapped.draft",
-                                  surface_spec(preset, "mapped"));
+  return loom::test::shared_atlas(preset + "-surface-mapped.draft", surface_spec(preset, "mapped"),
+                                  "draft", loom::test::Baker::Fixture);
 }
 
 }  // namespace

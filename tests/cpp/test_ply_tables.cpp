@@ -182,9 +182,7 @@ void raywave_probe_answers_from_tables_and_simulation() {
   EXPECT_NEAR(j["raw"]["theta_i_deg"].get<double>(), th, 1e-4);
   EXPECT_GE(j["raw"]["value"].get<double>(), 0.0);
   // A surface atlas has no tables: a clear error, non-zero exit.
-  fs::path surf = scratch("surface.atlas");
-  auto r = loom::parse_spec(loom::preset("plain"), "draft");
-  loom::bake_atlas(r.spec, surf, {});
+  const fs::path& surf = loom::test::draft_atlas("plain", "surface");
   EXPECT_NE(run(loom::test::bake_exe() + " eval raywave --atlas " + surf.string() +
                     " --theta-i 0 --h 0 --wo 0,1,0 2>&1",
                 &out),

@@ -26,8 +26,9 @@ fs::path bake(const std::string& preset, const std::string& quality, const std::
   auto d = loom::preset(preset);
   d["model"]["tier"] = tier;
   if (!noise) d["wave"] = {{"noise", false}};
-  return loom::test::shared_atlas(preset + "-" + tier + (noise ? "" : "-quiet") + "." + quality, d,
-                                  quality);
+  return loom::test::shared_atlas(
+      preset + "-" + tier + (noise ? "" : "-quiet") + "." + quality, d, quality,
+      loom::test::Baker::Fixture);
 }
 
 }  // namespace

@@ -76,8 +76,8 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
   // alone, and at albedo 1): gray wool twill, and plain in a brown. With "colour_reading":
   // "swatch" the closures' swatch, on other and more points of the repeat than the bake's, is
   // the picked colour within Delta E 2000 of 2; with the ply-albedo reading (gray wool twill's,
-  // the control) it is far from it. (About a minute under the sanitizers: three draft bakes,
-  // their swatches on 100 points.)
+  // the control) it is far from it. (Three draft bakes, by the fixture baker (test_util.h), and
+  // their swatches on 100 points under the sanitizers.)
   const loom::SpectralUpsampler up(loom::ColourConverter(""));
   for (const char* preset : {"gray_wool_twill", "plain"}) {
     nlohmann::json d = loom::preset(preset);
@@ -92,7 +92,8 @@ TEST(SurfaceSwatch, ABakeWithTheReadingRendersThePickedColour) {
       const std::string name =
           std::string(preset) + (std::string(preset) == "plain" ? "-brown" : "");
       const auto dir = loom::test::shared_atlas(
-          name + (swatch ? "-surface-swatch" : "-surface-ply") + ".draft", d);
+          name + (swatch ? "-surface-swatch" : "-surface-ply") + ".draft", d, "draft",
+          loom::test::Baker::Fixture);
       const loom::Atlas a = loom::load_atlas(dir);
       const auto picked =
           a.manifest.at("yarn_colours_linear").at("warp").get<std::array<double, 3>>();
@@ -132,7 +133,8 @@ TEST(SurfaceSwatch, BrightColoursReachFurtherWithinEnergy) {
     d["model"]["tier"] = "surface";
     d["model"]["colour_reading"] = "swatch";
     const loom::Atlas a =
-        loom::load_atlas(loom::test::shared_atlas(preset + "-surface-swatch.draft", d));
+        loom::load_atlas(loom::test::shared_atlas(preset + "-surface-swatch.draft", d, "draft",
+                                                  loom::test::Baker::Fixture));
     const auto& sw = a.manifest.at("swatch");
     const auto& y = sw.at("yarns").at("warp");
     const double cmax = sw.at("albedo_max").get<double>();

@@ -66,17 +66,29 @@ inline int run(const std::string& cmd, std::string* out = nullptr) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
+/// Who bakes a shared atlas: this test binary, in process (under the sanitizers in
+/// scripts/test.sh), or the loom-bake that $LOOM_TEST_FIXTURE_BAKE names (scripts/test.sh: the
+/// release build's, of the same sources), where one is named. Tests that only read an atlas need
+/// not pay for its bake under the sanitizers (a ray-wave draft bake there takes about a minute, a
+/// fifth of that in release): the bake's own code runs under them in the tests that bake, ray-wave
+/// ones included (PlyTables, DiffractionSampling, RaywaveShading, AtlasCli), and each stage that
+/// only fixtures run has one fixture baked in process (the plain preset's surface draft, the
+/// plain red surface swatch, the plain ray-wave swatch). An atlas of the fixture baker is not
+/// this binary's to reuse (bake keys hold the baker's hash): tests of reuse bake their own.
+enum class Baker { ThisBinary, Fixture };
+
 /// The atlas of `spec` (a spec document, parsed at `quality`), baked once for all the test
 /// processes of a run: into $LOOM_TEST_ATLAS_CACHE/<name> (CTest sets it to the build's
-/// test-atlases/; every C++ test is a process of its own, and under the sanitizers a ray-wave
-/// bake costs up to a minute), else into scratch(<name>). bake_atlas reuses a valid atlas there
-/// only if the same spec was baked by this very test binary (its bake key holds the binary's
-/// hash), so a rebuilt binary bakes afresh; concurrent bakes of one spec leave one valid atlas
+/// test-atlases/; every C++ test is a process of its own), else into scratch(<name>), by `who`
+/// (Baker). bake_atlas reuses a valid atlas there only if the same spec was baked by the same
+/// baker binary (its bake key holds the binary's hash), so a rebuilt binary bakes afresh;
+/// concurrent bakes of one spec leave one valid atlas
 /// (AtlasCli.ConcurrentBakesOfOneSpecLeaveOneValidAtlas). Read it, do not change it
 /// (copy_atlas_dir for that). `name` must differ for different specs.
 inline const std::filesystem::path& shared_atlas(const std::string& name,
                                                  const nlohmann::json& spec,
-                                                 const std::string& quality = "draft") {
+                                                 const std::string& quality = "draft",
+                                                 Baker who = Baker::ThisBinary) {
   static std::map<std::string, std::filesystem::path> baked;
   auto it = baked.find(name);
   if (it != baked.end()) return it->second;
@@ -91,23 +103,39 @@ inline const std::filesystem::path& shared_atlas(const std::string& name,
       if (fd >= 0) ::close(fd);  // (closing releases the flock)
     }
   } lock;
+  const char* fixture = std::getenv("LOOM_TEST_FIXTURE_BAKE");
+  const bool by_fixture = who == Baker::Fixture && fixture && *fixture;
   if (const char* cache = std::getenv("LOOM_TEST_ATLAS_CACHE"); cache && *cache) {
     std::filesystem::create_directories(cache);
-    dir = std::filesystem::path(cache) / name;
+    // (one folder per baker: each would replace the other's atlas, of another bake key)
+    dir = std::filesystem::path(cache) / (by_fixture ? name + ".fixture" : name);
     lock.fd = ::open((dir.string() + ".lock").c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
     if (lock.fd >= 0) ::flock(lock.fd, LOCK_EX);
   } else {
     dir = scratch(name);
   }
-  loom::bake_atlas(r.spec, dir, {});
+  if (by_fixture) {
+    const std::string spec_file = dir.string() + ".spec.json";
+    std::ofstream(spec_file) << spec.dump();
+    std::string out;
+    if (run(std::string(fixture) + " bake " + spec_file + " --quality " + quality +
+                " --progress=none -o " + dir.string() + " 2>&1",
+            &out) != 0)
+      throw std::runtime_error("shared_atlas " + name + ": " + fixture + " failed: " + out);
+  } else {
+    loom::bake_atlas(r.spec, dir, {});
+  }
   return baked.emplace(name, dir).first->second;
 }
 
 /// A draft atlas of a built-in preset at a tier ("surface" or "raywave"): shared_atlas.
+/// By the fixture baker (Baker), but for the plain preset's surface tier, the one the tests of
+/// bake reuse and of the default bake's stages read as this binary bakes it.
 inline const std::filesystem::path& draft_atlas(const std::string& preset, const std::string& tier) {
   nlohmann::json d = loom::preset(preset);
   d["model"]["tier"] = tier;
-  return shared_atlas(preset + "-" + tier + ".draft", d);
+  return shared_atlas(preset + "-" + tier + ".draft", d, "draft",
+                      preset == "plain" && tier == "surface" ? Baker::ThisBinary : Baker::Fixture);
 }
 
 /// The size of a randomised sweep: `fast` in the test command, `full` with LOOM_FULL=1
