@@ -181,10 +181,8 @@ TEST(DiffractionSampling, ClosuresMatchTheModelInTheArms) {
   // edge (the beam partly clipped, x offset 0.95 of the half gap), the closures'
   // expectation follows the model's pattern along the arm (s_x) and across it (s_y), outside the
   // central spot (the lobes' width, LOOM_DIFFRACTION_KERNEL_RAD, blurs the pattern a little). And transparent() plus the sampled power is the open fraction.
-  auto r = loom::parse_spec(loom::preset("white_silk_organza"), "draft");
-  ASSERT_TRUE(r.ok());
-  const auto dir = loom::test::scratch("organza.atlas");
-  loom::bake_atlas(r.spec, dir, {});
+  // (Both atlases by the fixture baker: this test only reads them; test_util.h.)
+  const auto& dir = loom::test::draft_atlas("white_silk_organza", "raywave");
   const loom::Atlas atlas = loom::load_atlas(dir);
   const loom::RaywaveData d = loom::load_raywave(atlas);
   ASSERT_TRUE(d.diffraction.present);
@@ -236,11 +234,8 @@ TEST(DiffractionSampling, ClosuresMatchTheModelInTheArms) {
   // The non-wave variant: no gap table, delta transmission of the whole open fraction.
   auto delta_spec = loom::preset("white_silk_organza");
   delta_spec["wave"]["diffraction"] = false;
-  auto r2 = loom::parse_spec(delta_spec, "draft");
-  ASSERT_TRUE(r2.ok());
-  const auto dir2 = loom::test::scratch("organza-delta.atlas");
-  loom::bake_atlas(r2.spec, dir2, {});
-  const loom::Atlas a2 = loom::load_atlas(dir2);
+  const loom::Atlas a2 = loom::load_atlas(loom::test::shared_atlas(
+      "white_silk_organza-delta-raywave.draft", delta_spec, "draft", loom::test::Baker::Fixture));
   const loom::RaywaveData d2 = loom::load_raywave(a2);
   EXPECT_FALSE(d2.diffraction.present);
   const loom::RaywavePoint pd(d2, loom::sample_surface(a2, u, 0.0f), V, loom::Evaluator::Closures);

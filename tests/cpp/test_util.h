@@ -71,7 +71,7 @@ inline int run(const std::string& cmd, std::string* out = nullptr) {
 /// release build's, of the same sources), where one is named. Tests that only read an atlas need
 /// not pay for its bake under the sanitizers (a ray-wave draft bake there takes about a minute, a
 /// fifth of that in release): the bake's own code runs under them in the tests that bake, ray-wave
-/// ones included (PlyTables, DiffractionSampling, RaywaveShading, AtlasCli), and each stage that
+/// ones included (PlyTables, RaywaveShading, AtlasCli, Atlas), and each stage that
 /// only fixtures run has one fixture baked in process (the plain preset's surface draft, the
 /// plain red surface swatch, the plain ray-wave swatch). An atlas of the fixture baker is not
 /// this binary's to reuse (bake keys hold the baker's hash): tests of reuse bake their own.
