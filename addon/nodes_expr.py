@@ -344,15 +344,7 @@ def select(cond, if_true, if_false):
     b = _builder(cond, if_true, if_false)
     if b is None:
         return if_true if cond else if_false
-    vector = any(isinstance(v, V) or is_vector_constant(v) for v in (if_true, if_false))
-    kind = "Vector" if vector else "Float"
-    props = {"data_type": kind.upper(), "clamp_factor": True}
-    if vector:
-        props["factor_mode"] = "UNIFORM"
-    node = b.op_node("ShaderNodeMix", props, [("Factor_Float", cond), ("A_" + kind, if_false),
-                                              ("B_" + kind, if_true)])
-    out = socket_by_id(node.outputs, "Result_" + kind)
-    return V(b, out) if vector else F(b, out)
+    return _mix_node(b, cond, if_false, if_true, clamp_factor=True)
 
 
 def mix(a, b_, t):
@@ -361,9 +353,14 @@ def mix(a, b_, t):
     b = _builder(a, b_, t)
     if b is None:
         return a * (1 - t) + b_ * t
+    return _mix_node(b, t, a, b_, clamp_factor=False)
+
+
+def _mix_node(b, t, a, b_, clamp_factor: bool):
+    """A Mix node a (1 - t) + b_ t, float or vector (uniform factor) by the operands' type."""
     vector = any(isinstance(v, V) or is_vector_constant(v) for v in (a, b_))
     kind = "Vector" if vector else "Float"
-    props = {"data_type": kind.upper(), "clamp_factor": False}
+    props = {"data_type": kind.upper(), "clamp_factor": clamp_factor}
     if vector:
         props["factor_mode"] = "UNIFORM"
     node = b.op_node("ShaderNodeMix", props, [("Factor_Float", t), ("A_" + kind, a),
